@@ -1,0 +1,2 @@
+//! Groove cross-section profiles.
+pub mod standard;
