@@ -3,3 +3,5 @@
 pub mod gcode;
 pub mod machine;
 pub mod profile;
+pub mod brent;
+pub mod linkage;

@@ -1,2 +1,426 @@
-//! Groove cross-section profiles.
+//! Groove cross-sections: one period of the transverse profile `P(u)` of kinematics.md.
+//!
+//! A [`Profile`] is a curve in the transverse plane `z = 0` that covers one period of polar
+//! angle (`2π / starts`) with the polar angle increasing along its parameter `u`; the next
+//! period is the same curve turned by the period angle. It is built from
+//! - sampled points, fitted by a periodic cubic spline ([`points`], [`spline`]), or
+//! - the exact axial section of a standard thread ([`standard`]), turned into the transverse
+//!   section by kinematics.md's rule: the axial point `(ρ, z)` is the transverse point at radius
+//!   `ρ` and polar angle `−z / p`.
+//!
+//! Convex corners (a crest edge of a standard thread) are kept sharp: they become a
+//! [`Piece::Corner`] along which the point stays put and the tangent turns, so the ring rolls
+//! its nose around the edge. A concave corner cannot be cut by a nose of finite radius and is
+//! reported by [`Profile::concave_stretches`].
+
+pub mod points;
+pub mod spline;
 pub mod standard;
+
+use glam::DVec2;
+use num_complex::Complex64;
+use spline::Spline;
+use standard::AxialPiece;
+use std::f64::consts::PI;
+
+/// A point of the transverse profile with its first-order geometry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProfilePoint {
+    /// Parameter along the profile.
+    pub u: f64,
+    /// Position `(x, y)` in the transverse plane, mm.
+    pub pos: DVec2,
+    /// Unit tangent, pointing the way the polar angle increases.
+    pub tangent: DVec2,
+}
+
+/// One piece of a profile, traversed with the polar angle increasing.
+#[derive(Debug, Clone)]
+pub enum Piece {
+    /// A transverse spline, parameter = chord length.
+    Spline(Spline),
+    /// An axial-section piece seen in the transverse plane (lead parameter `p`), traversed from
+    /// its end to its start when `reversed` (needed where `−z / p` decreases along the piece).
+    Axial {
+        /// The exact axial piece.
+        piece: AxialPiece,
+        /// Lead parameter p = ±lead / 2π.
+        p: f64,
+        /// Whether the piece is traversed from its end to its start.
+        reversed: bool,
+    },
+    /// A convex edge: the point stays at `at` while the tangent angle turns from `from` to `to`
+    /// (radians, `to > from`). Its parameter length is the turning angle, in radians.
+    Corner {
+        /// The edge point.
+        at: DVec2,
+        /// Tangent angle arriving at the edge.
+        from: f64,
+        /// Tangent angle leaving the edge.
+        to: f64,
+    },
+}
+
+impl Piece {
+    fn length(&self) -> f64 {
+        match self {
+            Piece::Spline(s) => s.length(),
+            Piece::Axial { piece, .. } => piece.length(),
+            Piece::Corner { from, to, .. } => to - from,
+        }
+    }
+
+    /// Position, first and second derivative with respect to the piece's own parameter.
+    fn eval(&self, s: f64) -> (DVec2, DVec2, DVec2) {
+        match self {
+            Piece::Spline(spline) => {
+                let e = spline.eval(s);
+                (c2v(e.p), c2v(e.d1), c2v(e.d2))
+            }
+            Piece::Axial {
+                piece,
+                p,
+                reversed,
+            } => {
+                let len = piece.length();
+                let (a, mut t, kappa) = piece.eval(if *reversed { len - s } else { s });
+                // d²A/ds² = κ · (t turned by +90°), unchanged by reversing the direction.
+                let d2a = kappa * DVec2::new(-t.y, t.x);
+                if *reversed {
+                    t = -t;
+                }
+                let (rho, z) = (a.x, a.y);
+                let (phi, dphi, ddphi) = (-z / p, -t.y / p, -d2a.y / p);
+                let e = Complex64::from_polar(1.0, phi);
+                let pos = e * rho;
+                let d1 = e * Complex64::new(t.x, rho * dphi);
+                let d2 = e * Complex64::new(
+                    d2a.x - rho * dphi * dphi,
+                    2.0 * t.x * dphi + rho * ddphi,
+                );
+                (c2v(pos), c2v(d1), c2v(d2))
+            }
+            Piece::Corner { at, from, to } => {
+                let angle = from + s.clamp(0.0, to - from);
+                (*at, DVec2::from_angle(angle), DVec2::ZERO)
+            }
+        }
+    }
+}
+
+fn c2v(c: Complex64) -> DVec2 {
+    DVec2::new(c.re, c.im)
+}
+
+/// One period of a groove's transverse section.
+#[derive(Debug, Clone)]
+pub struct Profile {
+    pieces: Vec<Piece>,
+    /// Parameter at the start of each piece, plus the total length at the end.
+    offsets: Vec<f64>,
+    period: f64,
+}
+
+/// A concave stretch the insert nose cannot follow (its radius is below the nose radius).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConcaveStretch {
+    /// Where the stretch is tightest.
+    pub at: DVec2,
+    /// Its smallest radius of curvature, mm (0 for a sharp concave corner).
+    pub min_radius: f64,
+    /// Depth of material the nose leaves there, mm (infinite where the nose cannot enter).
+    pub depth_left: f64,
+}
+
+impl Profile {
+    /// A profile from its pieces, in order of increasing polar angle, covering one period.
+    pub fn new(pieces: Vec<Piece>, period: f64) -> Profile {
+        let mut offsets = vec![0.0];
+        for piece in &pieces {
+            offsets.push(offsets.last().copied().unwrap_or(0.0) + piece.length());
+        }
+        Profile {
+            pieces,
+            offsets,
+            period,
+        }
+    }
+
+    /// A profile from the axial pieces of one period (ordered by increasing z), for lead
+    /// parameter `p`. Sharp convex edges become [`Piece::Corner`]s; sharp concave ones are kept
+    /// as they are and reported by [`Profile::concave_stretches`].
+    pub fn from_axial(axial: Vec<AxialPiece>, p: f64, period: f64) -> Profile {
+        let reversed = p > 0.0;
+        let mut ordered = axial;
+        if reversed {
+            ordered.reverse();
+        }
+        let smooth: Vec<Piece> = ordered
+            .into_iter()
+            .map(|piece| Piece::Axial { piece, p, reversed })
+            .collect();
+        let mut pieces = Vec::with_capacity(smooth.len() * 2);
+        let n = smooth.len();
+        for (i, piece) in smooth.iter().enumerate() {
+            pieces.push(piece.clone());
+            let (end, d_out, _) = piece.eval(piece.length());
+            let next = &smooth[(i + 1) % n];
+            let (_, mut d_in, _) = next.eval(0.0);
+            if i + 1 == n {
+                d_in = DVec2::from_angle(period).rotate(d_in);
+            }
+            let turn = d_out.angle_to(d_in);
+            if turn > 1e-9 {
+                let from = d_out.to_angle();
+                pieces.push(Piece::Corner {
+                    at: end,
+                    from,
+                    to: from + turn,
+                });
+            }
+        }
+        Profile::new(pieces, period)
+    }
+
+    /// Polar period `2π / starts`, radians.
+    pub fn period(&self) -> f64 {
+        self.period
+    }
+
+    /// Total parameter length of one period.
+    pub fn length(&self) -> f64 {
+        self.offsets.last().copied().unwrap_or(0.0)
+    }
+
+    /// Parameters where pieces join: the natural places to put samples.
+    pub fn breaks(&self) -> &[f64] {
+        &self.offsets
+    }
+
+    fn locate(&self, u: f64) -> (usize, f64) {
+        let u = u.clamp(0.0, self.length());
+        let i = self
+            .offsets
+            .partition_point(|&o| o <= u)
+            .saturating_sub(1)
+            .min(self.pieces.len() - 1);
+        (i, u - self.offsets[i])
+    }
+
+    /// Position, first and second derivative at `u`.
+    pub fn derivatives(&self, u: f64) -> (DVec2, DVec2, DVec2) {
+        let (i, s) = self.locate(u);
+        self.pieces[i].eval(s)
+    }
+
+    /// The profile point at parameter `u` (clamped to one period).
+    pub fn point(&self, u: f64) -> ProfilePoint {
+        let (pos, d1, _) = self.derivatives(u);
+        ProfilePoint {
+            u,
+            pos,
+            tangent: d1.normalize(),
+        }
+    }
+
+    /// Whether `u` lies on a sharp edge (where the tangent turns in place).
+    pub fn is_corner(&self, u: f64) -> bool {
+        matches!(self.pieces[self.locate(u).0], Piece::Corner { .. })
+    }
+
+    /// Smallest and largest radius from the screw axis over the period.
+    pub fn radius_range(&self) -> (f64, f64) {
+        let n = 2000;
+        (0..=n)
+            .map(|i| self.point(self.length() * i as f64 / n as f64).pos.length())
+            .fold((f64::INFINITY, 0.0), |(lo, hi), r| (lo.min(r), hi.max(r)))
+    }
+
+    /// Concave stretches tighter than a nose of radius `nose`, judged by the helical surface's
+    /// normal curvature across the groove (perpendicular to the helix through the point): that
+    /// is the direction in which the nose has to fit into the groove.
+    ///
+    /// The depth left is that of a nose tangent to both sides of an arc of the stretch's
+    /// smallest radius `ρ` spanning the stretch's turning angle `θ`: `(r − ρ)(1/cos(θ/2) − 1)`;
+    /// infinite from `θ ≥ π` on, where the nose cannot enter at all.
+    pub fn concave_stretches(&self, p: f64, nose: f64) -> Vec<ConcaveStretch> {
+        let mut found = Vec::new();
+        let mut current: Option<(ConcaveStretch, f64)> = None; // stretch, turning angle
+        let samples = 4000;
+        let du = self.length() / samples as f64;
+        let mut close = |current: &mut Option<(ConcaveStretch, f64)>| {
+            if let Some((mut stretch, turn)) = current.take() {
+                stretch.depth_left = if turn >= PI {
+                    f64::INFINITY
+                } else {
+                    (nose - stretch.min_radius) * (1.0 / (turn / 2.0).cos() - 1.0)
+                };
+                found.push(stretch);
+            }
+        };
+        for i in 0..samples {
+            let u = (i as f64 + 0.5) * du;
+            let (i_piece, _) = self.locate(u);
+            let (kappa, width) = match &self.pieces[i_piece] {
+                Piece::Corner { .. } => (-1.0, 0.0), // convex: never concave
+                _ => self.cross_curvature(u, p),
+            };
+            if kappa > 1.0 / nose {
+                let at = self.point(u).pos;
+                let entry = current.get_or_insert((
+                    ConcaveStretch {
+                        at,
+                        min_radius: f64::INFINITY,
+                        depth_left: 0.0,
+                    },
+                    0.0,
+                ));
+                if 1.0 / kappa < entry.0.min_radius {
+                    entry.0.min_radius = 1.0 / kappa;
+                    entry.0.at = at;
+                }
+                entry.1 += kappa * width * du;
+            } else {
+                close(&mut current);
+            }
+        }
+        close(&mut current);
+        // Sharp concave joins between smooth pieces.
+        for (i, piece) in self.pieces.iter().enumerate() {
+            let Some(next) = self.pieces.get(i + 1) else {
+                break;
+            };
+            if matches!(piece, Piece::Corner { .. }) || matches!(next, Piece::Corner { .. }) {
+                continue;
+            }
+            let (end, d_out, _) = piece.eval(piece.length());
+            let (_, d_in, _) = next.eval(0.0);
+            let turn = d_out.angle_to(d_in);
+            if turn < -1e-9 {
+                let n_out = self.normal3(end, d_out, p);
+                let n_in = self.normal3(end, d_in, p);
+                let turn3 = n_out.angle_between(n_in);
+                found.push(ConcaveStretch {
+                    at: end,
+                    min_radius: 0.0,
+                    depth_left: if turn3 >= PI {
+                        f64::INFINITY
+                    } else {
+                        nose * (1.0 / (turn3 / 2.0).cos() - 1.0)
+                    },
+                });
+            }
+        }
+        found
+    }
+
+    fn normal3(&self, pos: DVec2, tangent: DVec2, p: f64) -> glam::DVec3 {
+        crate::linkage::surface_normal(pos, tangent, p)
+    }
+
+    /// Normal curvature of the helical surface at `(u, θ = 0)` across the groove (positive where
+    /// the surface is concave, i.e. bends towards its outward normal), and the length of that
+    /// cross direction per unit of `u`.
+    fn cross_curvature(&self, u: f64, p: f64) -> (f64, f64) {
+        use glam::DVec3;
+        let (pos, d1, d2) = self.derivatives(u);
+        let n = crate::linkage::surface_normal(pos, d1, p);
+        let su = DVec3::new(d1.x, d1.y, 0.0);
+        let st = DVec3::new(-pos.y, pos.x, p);
+        let suu = DVec3::new(d2.x, d2.y, 0.0);
+        let sut = DVec3::new(-d1.y, d1.x, 0.0);
+        let stt = DVec3::new(-pos.x, -pos.y, 0.0);
+        let (e, f, g) = (su.dot(su), su.dot(st), st.dot(st));
+        let (l, m, nn) = (suu.dot(n), sut.dot(n), stt.dot(n));
+        let dt = -f / g; // (du, dθ) = (1, −F/G) is perpendicular to the helix
+        let first = e + 2.0 * f * dt + g * dt * dt;
+        let second = l + 2.0 * m * dt + nn * dt * dt;
+        (second / first, first.sqrt())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::TAU;
+
+    /// An axial section of one pitch `pitch`: a flat crest and a semicircular-ish root arc,
+    /// convex-cornered where they meet.
+    fn arc_groove(pitch: f64, outer: f64, radius: f64) -> Vec<AxialPiece> {
+        let centre = DVec2::new(outer, 0.0);
+        let reach = radius; // arc meets the outer radius at z = ±radius
+        vec![
+            AxialPiece::Line {
+                from: DVec2::new(outer, -pitch / 2.0),
+                to: DVec2::new(outer, -reach),
+            },
+            AxialPiece::Arc {
+                centre,
+                radius,
+                start: 1.5 * PI,
+                end: 0.5 * PI,
+            },
+            AxialPiece::Line {
+                from: DVec2::new(outer, reach),
+                to: DVec2::new(outer, pitch / 2.0),
+            },
+        ]
+    }
+
+    #[test]
+    fn axial_profile_covers_one_period_with_polar_angle_increasing() {
+        for p in [8.0, -8.0] {
+            let period = TAU / 2.0;
+            let pitch = period * f64::abs(p);
+            let prof = Profile::from_axial(arc_groove(pitch, 20.0, 3.0), p, period);
+            let first = prof.point(0.0).pos;
+            let last = prof.point(prof.length()).pos;
+            let turned = DVec2::from_angle(period).rotate(first);
+            assert!((last - turned).length() < 1e-9, "closes by the period turn");
+            let mut prev = first.to_angle();
+            for i in 1..=500 {
+                let q = prof.point(prof.length() * i as f64 / 500.0);
+                let mut a = q.pos.to_angle();
+                while a < prev - PI {
+                    a += TAU;
+                }
+                assert!(a >= prev - 1e-12, "polar angle must not decrease");
+                prev = a;
+                // The transverse point at radius ρ and angle −z/p lies on the axial section.
+                let z = -a * p;
+                let rho = q.pos.length();
+                let zz = ((z + pitch / 2.0).rem_euclid(pitch)) - pitch / 2.0;
+                let expected = if zz.abs() >= 3.0 {
+                    20.0
+                } else {
+                    20.0 - (9.0 - zz * zz).sqrt()
+                };
+                assert!((rho - expected).abs() < 1e-9, "ρ {rho} vs {expected} at z {zz}");
+            }
+        }
+    }
+
+    #[test]
+    fn crest_edges_become_convex_corners() {
+        let prof = Profile::from_axial(arc_groove(20.0, 20.0, 3.0), 10.0 / PI, PI);
+        let corners = prof
+            .pieces
+            .iter()
+            .filter(|p| matches!(p, Piece::Corner { .. }))
+            .count();
+        assert_eq!(corners, 2, "both crest edges of the groove");
+        assert!(prof.concave_stretches(10.0 / PI, 1.0).is_empty());
+    }
+
+    #[test]
+    fn a_root_arc_tighter_than_the_nose_is_reported() {
+        let p = 10.0 / PI;
+        let prof = Profile::from_axial(arc_groove(20.0, 20.0, 3.0), p, PI);
+        let found = prof.concave_stretches(p, 4.0);
+        assert_eq!(found.len(), 1, "{found:?}");
+        // The groove is a half circle of radius 3: its normal section across the groove is
+        // close to the axial one, so the radius is close to 3, and a bigger nose cannot enter.
+        assert!((found[0].min_radius - 3.0).abs() < 0.2, "{found:?}");
+        assert!(found[0].depth_left > 0.0);
+    }
+}

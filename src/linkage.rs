@@ -1,0 +1,369 @@
+//! The node solver of kinematics.md: one profile point → one machine pose (X, C, Z) and its
+//! phase ψ = C + Z / p.
+//!
+//! For a surface point M (taken at θ = 0) with outward normal n, the insert nose centre is
+//! N = M + r·n. Turning the workpiece by C, conditions (1) and (2) of kinematics.md give Z and X
+//! in closed form, and the meridian condition (3) is one equation g(C) = 0, bracketed near the
+//! cutting-side angle C₀ and solved with Brent's method.
+
+use crate::brent;
+use crate::profile::ProfilePoint;
+use glam::{DVec2, DVec3};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+use std::fmt;
+
+/// Which side of the workpiece the ring cuts from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Whirling {
+    /// The ring encloses the workpiece and cuts on the −X side (k = +1).
+    Internal,
+    /// A cutter disk beside the workpiece cuts on the +X side (k = −1).
+    External,
+}
+
+impl Whirling {
+    /// kinematics.md's k: +1 internal, −1 external.
+    pub fn k(self) -> f64 {
+        match self {
+            Whirling::Internal => 1.0,
+            Whirling::External => -1.0,
+        }
+    }
+}
+
+/// The whirling ring as the linkage sees it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ring {
+    /// Internal or external whirling.
+    pub whirling: Whirling,
+    /// R: ring centre to insert nose centre, mm.
+    pub radius: f64,
+    /// r: insert nose radius, mm.
+    pub nose: f64,
+    /// δ ≥ 0: installation angle, radians.
+    pub installation: f64,
+    /// Half the insert's cutting-edge arc, radians: the largest angle between the contact
+    /// direction −n and the insert's axis (the ring's radial direction at N, inwards for internal
+    /// whirling, outwards for external) at which the edge still cuts.
+    pub edge_half_angle: f64,
+}
+
+/// A machine pose in the kinematics.md frame: X, Z in mm, C in radians.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Pose {
+    /// Ring-centre offset from the spindle axis, mm.
+    pub x: f64,
+    /// Workpiece turn, radians.
+    pub c: f64,
+    /// Axial position of the ring centre, mm.
+    pub z: f64,
+}
+
+impl Pose {
+    /// The phase ψ = C + Z / p, invariant along the screw motion.
+    pub fn phase(&self, p: f64) -> f64 {
+        self.c + self.z / p
+    }
+}
+
+/// A solved contact: the pose and what the planner needs to know about it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    /// The machine pose that touches the point at θ = 0.
+    pub pose: Pose,
+    /// Its phase ψ.
+    pub phase: f64,
+    /// |n_M · x̂|: how much of an X error shows as a normal error at the contact.
+    pub normal_x: f64,
+}
+
+/// Why a profile point has no pose.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LinkageError {
+    /// The ring circle cannot pass through the nose centre in its tilted plane.
+    #[error(
+        "the ring cannot reach the point: the nose centre lies {needed:.3} mm from the ring's \
+         plane axis but the ring radius is {radius:.3} mm (negative square root)"
+    )]
+    OutOfReach {
+        /// |N_y| / cos δe at the best turn found.
+        needed: f64,
+        /// R.
+        radius: f64,
+    },
+    /// g(C) has no root near the cutting side.
+    #[error("no pose touches the point: the meridian condition has no root within ±90° of the cutting side")]
+    NoRoot,
+    /// The contact would be outside the insert's cutting edge.
+    #[error(
+        "the contact lies {angle_deg:.1}° off the insert's axis, beyond its cutting edge (±{limit_deg:.1}°)"
+    )]
+    OffEdge {
+        /// Angle between −n and the insert axis.
+        angle_deg: f64,
+        /// The edge's half arc.
+        limit_deg: f64,
+    },
+}
+
+/// Outward unit normal of the helical surface at the profile point `(pos, tangent)`, θ = 0:
+/// `n ∝ (p·y′, −p·x′, x·x′ + y·y′)`, oriented so that its in-plane part points away from the
+/// material (to the right of a tangent running with increasing polar angle).
+pub fn surface_normal(pos: DVec2, tangent: DVec2, p: f64) -> DVec3 {
+    let n = DVec3::new(p * tangent.y, -p * tangent.x, pos.dot(tangent));
+    (n * p.signum()).normalize()
+}
+
+/// Turn a vector about z by `c` radians.
+pub fn turn(v: DVec3, c: f64) -> DVec3 {
+    let (s, co) = c.sin_cos();
+    DVec3::new(co * v.x - s * v.y, s * v.x + co * v.y, v.z)
+}
+
+/// The linkage for one groove (lead parameter p) and one ring.
+#[derive(Debug, Clone, Copy)]
+pub struct Linkage {
+    /// Lead parameter p = ±lead / 2π (+ right hand).
+    pub p: f64,
+    /// The ring.
+    pub ring: Ring,
+}
+
+/// Angle step of the bracket search around C₀, and how far it looks.
+const BRACKET_STEP: f64 = PI / 360.0;
+const BRACKET_REACH: f64 = PI / 2.0;
+
+impl Linkage {
+    /// Signed installation angle δe = sign(p)·δ.
+    pub fn delta_e(&self) -> f64 {
+        self.p.signum() * self.ring.installation
+    }
+
+    /// The ring axis a_M = (0, k·sin δe, cos δe), fixed in the machine frame.
+    pub fn axis(&self) -> DVec3 {
+        let de = self.delta_e();
+        DVec3::new(0.0, self.ring.whirling.k() * de.sin(), de.cos())
+    }
+
+    /// Z and X that put the turned nose centre `n_m` on the tip circle (conditions 1 and 2), or
+    /// the reach needed when the square root is negative.
+    fn place(&self, n_m: DVec3) -> Result<(f64, f64), f64> {
+        let de = self.delta_e();
+        let z = n_m.z + self.ring.whirling.k() * de.tan() * n_m.y;
+        let needed = n_m.y.abs() / de.cos();
+        let radius = self.ring.radius;
+        if needed > radius {
+            return Err(needed);
+        }
+        Ok((n_m.x + (radius * radius - needed * needed).sqrt(), z))
+    }
+
+    /// g(C): the meridian condition (3), n_M · (a_M × (N_M − O_M)); NaN out of reach.
+    fn meridian(&self, nose: DVec3, normal: DVec3, c: f64) -> f64 {
+        let n_m = turn(nose, c);
+        match self.place(n_m) {
+            Ok((x, z)) => turn(normal, c).dot(self.axis().cross(n_m - DVec3::new(x, 0.0, z))),
+            Err(_) => f64::NAN,
+        }
+    }
+
+    /// The pose that touches the profile point at θ = 0 (kinematics.md, "The linkage").
+    pub fn solve(&self, point: &ProfilePoint) -> Result<Contact, LinkageError> {
+        let normal = surface_normal(point.pos, point.tangent, self.p);
+        self.solve_normal(point.pos, normal)
+    }
+
+    /// The pose that touches the surface point `pos` (θ = 0) whose outward normal is `normal`.
+    pub fn solve_normal(&self, pos: DVec2, normal: DVec3) -> Result<Contact, LinkageError> {
+        let nose = DVec3::new(pos.x, pos.y, 0.0) + self.ring.nose * normal;
+        let c0 = match self.ring.whirling {
+            Whirling::Internal => PI - nose.y.atan2(nose.x),
+            Whirling::External => -nose.y.atan2(nose.x),
+        };
+        let g = |c: f64| self.meridian(nose, normal, c);
+        let c = self.bracketed_root(g, c0).ok_or_else(|| {
+            // Tell a ring that is too small apart from a missing root.
+            match self.place(turn(nose, c0)) {
+                Err(needed) => LinkageError::OutOfReach {
+                    needed,
+                    radius: self.ring.radius,
+                },
+                Ok(_) => LinkageError::NoRoot,
+            }
+        })?;
+        let n_m = turn(nose, c);
+        let (x, z) = self.place(n_m).map_err(|needed| LinkageError::OutOfReach {
+            needed,
+            radius: self.ring.radius,
+        })?;
+        let centre = DVec3::new(x, 0.0, z);
+        let inward = (centre - n_m).normalize();
+        let insert_axis = match self.ring.whirling {
+            Whirling::Internal => inward,
+            Whirling::External => -inward,
+        };
+        let normal_m = turn(normal, c);
+        let off = (-normal_m).angle_between(insert_axis);
+        if off > self.ring.edge_half_angle + 1e-12 {
+            return Err(LinkageError::OffEdge {
+                angle_deg: off.to_degrees(),
+                limit_deg: self.ring.edge_half_angle.to_degrees(),
+            });
+        }
+        let pose = Pose { x, c, z };
+        Ok(Contact {
+            pose,
+            phase: pose.phase(self.p),
+            normal_x: normal_m.x.abs(),
+        })
+    }
+
+    /// The root of `g` nearest `c0`: step outwards on both sides until the sign changes, stop
+    /// a side where the ring is out of reach, then polish with Brent.
+    fn bracketed_root(&self, g: impl Fn(f64) -> f64, c0: f64) -> Option<f64> {
+        let g0 = g(c0);
+        if g0 == 0.0 {
+            return Some(c0);
+        }
+        let steps = (BRACKET_REACH / BRACKET_STEP).round() as usize;
+        // Per side: the last angle and value, and whether the side has left the reach.
+        let mut sides = [(c0, g0, false); 2];
+        for k in 1..=steps {
+            for ((prev_c, prev_g, left), dir) in sides.iter_mut().zip([1.0, -1.0]) {
+                if *left {
+                    continue;
+                }
+                let c = c0 + dir * BRACKET_STEP * k as f64;
+                let gc = g(c);
+                if gc == 0.0 {
+                    return Some(c);
+                }
+                if prev_g.is_finite() && gc.is_finite() && prev_g.signum() != gc.signum() {
+                    return brent::root(&g, *prev_c, c, 1e-14, 200);
+                }
+                // A side that leaves the reachable range is done; one that starts outside it
+                // may still walk into it.
+                *left = prev_g.is_finite() && !gc.is_finite();
+                (*prev_c, *prev_g) = (c, gc);
+            }
+        }
+        None
+    }
+}
+
+impl fmt::Display for Pose {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "X {:.4} mm, C {:.4}°, Z {:.4} mm",
+            self.x,
+            self.c.to_degrees(),
+            self.z
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::TAU;
+
+    fn ring(whirling: Whirling, radius: f64, nose: f64, delta_deg: f64) -> Ring {
+        Ring {
+            whirling,
+            radius,
+            nose,
+            installation: delta_deg.to_radians(),
+            edge_half_angle: PI / 2.0,
+        }
+    }
+
+    /// A point of a radial-normal stretch: the tangent is perpendicular to the radius.
+    fn radial_point(rho: f64, phi: f64) -> ProfilePoint {
+        ProfilePoint {
+            u: 0.0,
+            pos: DVec2::from_angle(phi) * rho,
+            tangent: DVec2::from_angle(phi + PI / 2.0),
+        }
+    }
+
+    #[test]
+    fn radial_normal_points_match_the_check_values_for_any_installation_angle() {
+        for delta in [0.0, 5.0, 18.0, 33.0] {
+            for (rho, phi) in [(25.0, 0.0), (35.0, 1.0), (27.5, -2.5)] {
+                for p in [14.0, -9.5] {
+                    let (r, big_r) = (1.2, 60.0);
+                    let internal = Linkage {
+                        p,
+                        ring: ring(Whirling::Internal, big_r, r, delta),
+                    };
+                    let c = internal.solve(&radial_point(rho, phi)).unwrap();
+                    assert!((c.pose.x - (big_r - (rho + r))).abs() < 1e-9);
+                    assert!(angle_eq(c.pose.c, PI - phi), "{} vs {}", c.pose.c, PI - phi);
+                    assert!(c.pose.z.abs() < 1e-9);
+                    let external = Linkage {
+                        p,
+                        ring: ring(Whirling::External, big_r, r, delta),
+                    };
+                    let c = external.solve(&radial_point(rho, phi)).unwrap();
+                    assert!((c.pose.x - (big_r + rho + r)).abs() < 1e-9);
+                    assert!(angle_eq(c.pose.c, -phi));
+                    assert!(c.pose.z.abs() < 1e-9);
+                }
+            }
+        }
+    }
+
+    fn angle_eq(a: f64, b: f64) -> bool {
+        let d = (a - b).rem_euclid(TAU);
+        d.min(TAU - d) < 1e-9
+    }
+
+    #[test]
+    fn reproduces_the_reference_linkage_vectors() {
+        let csv = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shared/data/linkage-vectors.csv"
+        ))
+        .expect("shared/data/linkage-vectors.csv beside the repository");
+        let mut rows = 0;
+        for line in csv.lines().skip(1) {
+            let f: Vec<&str> = line.split(',').collect();
+            let num = |i: usize| f[i].parse::<f64>().unwrap();
+            let whirling = if f[1] == "internal" {
+                Whirling::Internal
+            } else {
+                Whirling::External
+            };
+            let sign = if f[2] == "right" { 1.0 } else { -1.0 };
+            let starts = num(4);
+            let p = sign * num(3) / TAU;
+            let linkage = Linkage {
+                p,
+                ring: ring(whirling, num(5), num(6), num(7)),
+            };
+            // The profile ρ(φ) = 30 − 5 cos(3φ) and its tangent, exactly.
+            let phi = num(8).to_radians();
+            let rho = 30.0 - 5.0 * (starts * phi).cos();
+            let drho = 5.0 * starts * (starts * phi).sin();
+            let pos = DVec2::from_angle(phi) * rho;
+            let tangent = (DVec2::from_angle(phi) * drho
+                + DVec2::from_angle(phi + PI / 2.0) * rho)
+                .normalize();
+            let c = linkage
+                .solve(&ProfilePoint { u: 0.0, pos, tangent })
+                .unwrap();
+            let (x, cc, z, psi) = (num(10), num(11).to_radians(), num(12), num(13).to_radians());
+            assert!((c.pose.x - x).abs() < 1e-7, "{line}: X {}", c.pose.x);
+            assert!((c.pose.z - z).abs() < 1e-7, "{line}: Z {}", c.pose.z);
+            assert!(angle_eq(c.pose.c, cc), "{line}: C {}", c.pose.c.to_degrees());
+            let period = TAU / starts;
+            let d = (c.phase - psi).rem_euclid(period);
+            assert!(d.min(period - d) < 1e-9, "{line}: ψ {}", c.phase.to_degrees());
+            rows += 1;
+        }
+        assert_eq!(rows, 26);
+    }
+}
