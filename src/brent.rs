@@ -6,7 +6,13 @@
 
 /// A root of `f` in `[a, b]`, where `f(a)` and `f(b)` have opposite signs (or one is zero),
 /// to within `x_tol`; `None` if the bracket is not one or `max_iter` steps did not converge.
-pub fn root(mut f: impl FnMut(f64) -> f64, a: f64, b: f64, x_tol: f64, max_iter: usize) -> Option<f64> {
+pub fn root(
+    mut f: impl FnMut(f64) -> f64,
+    a: f64,
+    b: f64,
+    x_tol: f64,
+    max_iter: usize,
+) -> Option<f64> {
     let (mut a, mut b) = (a, b);
     let (mut fa, mut fb) = (f(a), f(b));
     if fa == 0.0 {

@@ -220,6 +220,16 @@ impl Linkage {
         })
     }
 
+    /// Signed distance from the workpiece point `q` (frame W) to the ring's torus at `pose`:
+    /// distance to the tip circle minus the nose radius. Negative inside the tool.
+    pub fn gap(&self, q: DVec3, pose: &Pose) -> f64 {
+        let d = turn(q, pose.c) - DVec3::new(pose.x, 0.0, pose.z);
+        let a = self.axis();
+        let along = d.dot(a);
+        let radial = (d - along * a).length();
+        (radial - self.ring.radius).hypot(along) - self.ring.nose
+    }
+
     /// The root of `g` nearest `c0`: step outwards on both sides until the sign changes, stop
     /// a side where the ring is out of reach, then polish with Brent.
     fn bracketed_root(&self, g: impl Fn(f64) -> f64, c0: f64) -> Option<f64> {
@@ -349,19 +359,30 @@ mod tests {
             let rho = 30.0 - 5.0 * (starts * phi).cos();
             let drho = 5.0 * starts * (starts * phi).sin();
             let pos = DVec2::from_angle(phi) * rho;
-            let tangent = (DVec2::from_angle(phi) * drho
-                + DVec2::from_angle(phi + PI / 2.0) * rho)
+            let tangent = (DVec2::from_angle(phi) * drho + DVec2::from_angle(phi + PI / 2.0) * rho)
                 .normalize();
             let c = linkage
-                .solve(&ProfilePoint { u: 0.0, pos, tangent })
+                .solve(&ProfilePoint {
+                    u: 0.0,
+                    pos,
+                    tangent,
+                })
                 .unwrap();
             let (x, cc, z, psi) = (num(10), num(11).to_radians(), num(12), num(13).to_radians());
             assert!((c.pose.x - x).abs() < 1e-7, "{line}: X {}", c.pose.x);
             assert!((c.pose.z - z).abs() < 1e-7, "{line}: Z {}", c.pose.z);
-            assert!(angle_eq(c.pose.c, cc), "{line}: C {}", c.pose.c.to_degrees());
+            assert!(
+                angle_eq(c.pose.c, cc),
+                "{line}: C {}",
+                c.pose.c.to_degrees()
+            );
             let period = TAU / starts;
             let d = (c.phase - psi).rem_euclid(period);
-            assert!(d.min(period - d) < 1e-9, "{line}: ψ {}", c.phase.to_degrees());
+            assert!(
+                d.min(period - d) < 1e-9,
+                "{line}: ψ {}",
+                c.phase.to_degrees()
+            );
             rows += 1;
         }
         assert_eq!(rows, 26);

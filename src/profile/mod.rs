@@ -77,11 +77,7 @@ impl Piece {
                 let e = spline.eval(s);
                 (c2v(e.p), c2v(e.d1), c2v(e.d2))
             }
-            Piece::Axial {
-                piece,
-                p,
-                reversed,
-            } => {
+            Piece::Axial { piece, p, reversed } => {
                 let len = piece.length();
                 let (a, mut t, kappa) = piece.eval(if *reversed { len - s } else { s });
                 // d²A/ds² = κ · (t turned by +90°), unchanged by reversing the direction.
@@ -94,10 +90,8 @@ impl Piece {
                 let e = Complex64::from_polar(1.0, phi);
                 let pos = e * rho;
                 let d1 = e * Complex64::new(t.x, rho * dphi);
-                let d2 = e * Complex64::new(
-                    d2a.x - rho * dphi * dphi,
-                    2.0 * t.x * dphi + rho * ddphi,
-                );
+                let d2 =
+                    e * Complex64::new(d2a.x - rho * dphi * dphi, 2.0 * t.x * dphi + rho * ddphi);
                 (c2v(pos), c2v(d1), c2v(d2))
             }
             Piece::Corner { at, from, to } => {
@@ -395,7 +389,10 @@ mod tests {
                 } else {
                     20.0 - (9.0 - zz * zz).sqrt()
                 };
-                assert!((rho - expected).abs() < 1e-9, "ρ {rho} vs {expected} at z {zz}");
+                assert!(
+                    (rho - expected).abs() < 1e-9,
+                    "ρ {rho} vs {expected} at z {zz}"
+                );
             }
         }
     }

@@ -58,7 +58,11 @@ impl Spline {
         let upper: Vec<Complex64> = (0..n).map(|i| h[i].into()).collect();
         let rhs: Vec<Complex64> = (0..n)
             .map(|i| {
-                let before = if i == 0 { slope[n - 1] / turn } else { slope[i - 1] };
+                let before = if i == 0 {
+                    slope[n - 1] / turn
+                } else {
+                    slope[i - 1]
+                };
                 6.0 * (slope[i] - before)
             })
             .collect();
@@ -193,8 +197,14 @@ mod tests {
         let turn = Complex64::from_polar(1.0, period);
         let (start, end) = (s.eval(0.0), s.eval(s.length()));
         assert!((end.p - start.p * turn).norm() < 1e-12);
-        assert!((end.d1 - start.d1 * turn).norm() < 1e-12, "C1 across the seam");
-        assert!((end.d2 - start.d2 * turn).norm() < 1e-12, "C2 across the seam");
+        assert!(
+            (end.d1 - start.d1 * turn).norm() < 1e-12,
+            "C1 across the seam"
+        );
+        assert!(
+            (end.d2 - start.d2 * turn).norm() < 1e-12,
+            "C2 across the seam"
+        );
     }
 
     #[test]

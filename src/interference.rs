@@ -1,0 +1,149 @@
+//! The global check of kinematics.md: no other part of the ring cuts below the target surface.
+//!
+//! The contact conditions only make the ring touch one point; the rest of the torus may still
+//! pass through a flank, the crest of a neighbouring thread or the core. For poses spread over
+//! the period this searches the whole groove surface within the ring's axial reach, every
+//! start included, for points inside the tool.
+
+use crate::linkage::{turn, Linkage};
+use crate::profile::Profile;
+use crate::table::Table;
+use glam::{DVec2, DVec3};
+
+/// A pose of the planned path that cuts the target surface elsewhere.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error(
+    "interference: cutting profile point ({at_x:.4}, {at_y:.4}), the ring also cuts {depth:.4} mm \
+     below the target surface at the point ({hit_x:.4}, {hit_y:.4}, z {hit_z:.4}) of the groove \
+     (a flank, a neighbouring thread or the core)"
+)]
+pub struct Interference {
+    /// The profile point being cut.
+    pub at_x: f64,
+    /// See `at_x`.
+    pub at_y: f64,
+    /// The surface point cut into, workpiece frame.
+    pub hit_x: f64,
+    /// See `hit_x`.
+    pub hit_y: f64,
+    /// See `hit_x`.
+    pub hit_z: f64,
+    /// How deep, mm.
+    pub depth: f64,
+}
+
+/// How many poses and surface helices to check per period.
+const POSES: usize = 96;
+const HELICES: usize = 160;
+
+/// Check poses spread over the table. `tolerance` is the depth below which a touch counts as
+/// the contact itself (the table's own accuracy).
+pub fn check(
+    profile: &Profile,
+    table: &Table,
+    linkage: &Linkage,
+    starts: u32,
+    tolerance: f64,
+) -> Result<(), Interference> {
+    let p = linkage.p;
+    let ring = linkage.ring;
+    let reach = ring.radius * ring.installation.sin() + ring.nose + 1.0;
+    let step = ring.nose.min(1.0);
+    let helices: Vec<DVec2> = (0..HELICES)
+        .map(|k| {
+            profile
+                .point(profile.length() * k as f64 / HELICES as f64)
+                .pos
+        })
+        .collect();
+    let n = table.samples.len();
+    for k in 0..POSES.min(n) {
+        let sample = &table.samples[k * (n - 1) / POSES.min(n)];
+        let pose = sample.contact.pose;
+        for start in 0..starts {
+            let turn_start = table.period * f64::from(start);
+            for v in &helices {
+                let base = DVec2::from_angle(turn_start).rotate(*v);
+                let point = |theta: f64| {
+                    turn(DVec3::new(base.x, base.y, 0.0), theta) + DVec3::Z * p * theta
+                };
+                let (lo, hi) = sorted((pose.z - reach) / p, (pose.z + reach) / p);
+                let dtheta = step / base.length().max(p.abs()).max(1e-9);
+                if let Some((theta, depth)) =
+                    deepest(|t| linkage.gap(point(t), &pose), lo, hi, dtheta)
+                {
+                    if depth > tolerance {
+                        let hit = point(theta);
+                        return Err(Interference {
+                            at_x: sample.pos.x,
+                            at_y: sample.pos.y,
+                            hit_x: hit.x,
+                            hit_y: hit.y,
+                            hit_z: hit.z,
+                            depth,
+                        });
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn sorted(a: f64, b: f64) -> (f64, f64) {
+    if a <= b {
+        (a, b)
+    } else {
+        (b, a)
+    }
+}
+
+/// The deepest point (most negative gap) along `[lo, hi]`: a scan at `step`, refined by golden
+/// section around every scan minimum that comes within one step of the tool.
+fn deepest(gap: impl Fn(f64) -> f64, lo: f64, hi: f64, step: f64) -> Option<(f64, f64)> {
+    let count = ((hi - lo) / step).ceil().max(2.0) as usize;
+    let values: Vec<(f64, f64)> = (0..=count)
+        .map(|i| {
+            let t = lo + (hi - lo) * i as f64 / count as f64;
+            (t, gap(t))
+        })
+        .collect();
+    let mut worst: Option<(f64, f64)> = None;
+    for i in 1..values.len() - 1 {
+        let (t, g) = values[i];
+        if g > values[i - 1].1 || g > values[i + 1].1 || g > step {
+            continue;
+        }
+        let refined = golden_min(&gap, values[i - 1].0, values[i + 1].0);
+        let (t, g) = if refined.1 < g { refined } else { (t, g) };
+        if g < 0.0 && worst.is_none_or(|w| -g > w.1) {
+            worst = Some((t, -g));
+        }
+    }
+    worst
+}
+
+/// Golden-section minimum of `f` on `[a, b]`.
+fn golden_min(f: &impl Fn(f64) -> f64, mut a: f64, mut b: f64) -> (f64, f64) {
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut x1, mut x2) = (b - g * (b - a), a + g * (b - a));
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    for _ in 0..50 {
+        if f1 < f2 {
+            b = x2;
+            (x2, f2) = (x1, f1);
+            x1 = b - g * (b - a);
+            f1 = f(x1);
+        } else {
+            a = x1;
+            (x1, f1) = (x2, f2);
+            x2 = a + g * (b - a);
+            f2 = f(x2);
+        }
+    }
+    if f1 < f2 {
+        (x1, f1)
+    } else {
+        (x2, f2)
+    }
+}

@@ -1,0 +1,442 @@
+//! The job file: the groove, the tool and the cut, as a process engineer writes them.
+//!
+//! TOML, read with serde; unknown keys are errors (a misspelt key must not be silently
+//! ignored on a machine). Lengths in mm, angles in degrees, speeds in rpm. See
+//! `examples/*/job.toml` for complete jobs.
+
+use crate::linkage::{Ring, Whirling};
+use crate::profile::points::{self, PointsError, Section};
+use crate::profile::standard::{
+    AcmeGeneralPurpose, BallArc, IsoTrapezoidal, StandardError, StandardProfile,
+};
+use crate::profile::Profile;
+use serde::Deserialize;
+use std::f64::consts::TAU;
+use std::path::{Path, PathBuf};
+
+/// A whole job file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Job {
+    /// The helical groove.
+    pub groove: Groove,
+    /// The whirling tool.
+    pub tool: Tool,
+    /// Cutting parameters.
+    pub cut: Cut,
+    /// Directory the job file was read from (profile paths are relative to it).
+    #[serde(skip)]
+    pub dir: PathBuf,
+}
+
+/// Right- or left-hand helix.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Hand {
+    /// p > 0.
+    Right,
+    /// p < 0.
+    Left,
+}
+
+/// `[groove]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Groove {
+    /// Lead, mm (axial advance of one groove per turn).
+    pub lead: f64,
+    /// Number of starts (grooves side by side).
+    pub starts: u32,
+    /// Helix hand.
+    pub hand: Hand,
+    /// The groove is fully formed from `z_start` …
+    pub z_start: f64,
+    /// … to `z_start + length`, mm.
+    pub length: f64,
+    /// Its cross-section.
+    pub profile: ProfileSpec,
+}
+
+/// Which section sampled points describe.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SectionSpec {
+    /// `x, y` in the plane z = 0.
+    Transverse,
+    /// `rho, z` in the axial half-plane.
+    Axial,
+}
+
+/// The standard families a job can name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StandardKind {
+    /// ISO 2904 metric trapezoidal.
+    Trapezoidal,
+    /// ASME B1.5 general-purpose Acme.
+    Acme,
+    /// Circular-arc ball-screw groove.
+    BallArc,
+}
+
+/// `[groove.profile]`: either sampled points or a standard with its dimensions.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProfileSpec {
+    /// Section of the points (default transverse).
+    pub section: Option<SectionSpec>,
+    /// CSV file of points, relative to the job file.
+    pub points: Option<PathBuf>,
+    /// The points are half a period: mirror them about the last point.
+    pub mirror: Option<bool>,
+    /// A standard profile instead of points.
+    pub standard: Option<StandardKind>,
+    /// Trapezoidal, Acme: major diameter d, mm.
+    pub major_diameter: Option<f64>,
+    /// Trapezoidal, Acme: root fillet radius, mm.
+    pub root_radius: Option<f64>,
+    /// Trapezoidal: crest clearance a_c override, mm.
+    pub crest_clearance: Option<f64>,
+    /// Ball-arc: ball diameter D_w, mm.
+    pub ball_diameter: Option<f64>,
+    /// Ball-arc: groove radius r_g, mm.
+    pub groove_radius: Option<f64>,
+    /// Ball-arc: ball-centre (pitch-circle) diameter d_0, mm.
+    pub pitch_diameter: Option<f64>,
+    /// Ball-arc: shaft outer diameter, mm.
+    pub outer_diameter: Option<f64>,
+}
+
+/// `[tool]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Tool {
+    /// Internal (ring round the work) or external (disk beside it).
+    pub whirling: Whirling,
+    /// R: ring centre to insert nose centre, mm.
+    pub ring_radius: f64,
+    /// r: insert nose radius, mm.
+    pub nose_radius: f64,
+    /// Number of inserts on the ring.
+    pub inserts: u32,
+    /// δ, degrees; omitted: the lead angle at the profile's mean radius.
+    pub installation_angle_deg: Option<f64>,
+    /// The insert's cutting-edge arc, degrees (default 180: a full-radius nose cuts ±90°).
+    pub edge_arc_deg: Option<f64>,
+}
+
+/// `[cut]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Cut {
+    /// Allowable profile error Δ, mm.
+    pub delta: f64,
+    /// Axial feed of the unit per workpiece revolution, mm.
+    pub axial_feed: f64,
+    /// Workpiece speed, rpm.
+    pub workpiece_rpm: f64,
+    /// Ring speed, rpm.
+    pub ring_rpm: f64,
+    /// Feed of the radial plunge and of other G94 moves, mm/min (default 50).
+    pub plunge_feed: Option<f64>,
+}
+
+/// Why a job could not be read or resolved.
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    /// The file could not be read.
+    #[error("cannot read {path}: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// TOML syntax or schema.
+    #[error("{path}: {source}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// Why (with line and column).
+        source: Box<toml::de::Error>,
+    },
+    /// A value out of its range.
+    #[error("{key} = {value}: {why}")]
+    Invalid {
+        /// The TOML key.
+        key: &'static str,
+        /// Its value.
+        value: String,
+        /// What is allowed.
+        why: String,
+    },
+    /// The profile table is inconsistent.
+    #[error("[groove.profile]: {0}")]
+    ProfileSpec(String),
+    /// Profile points are wrong.
+    #[error("{path}: {source}")]
+    Points {
+        /// The points file.
+        path: PathBuf,
+        /// What is wrong and where.
+        source: PointsError,
+    },
+    /// Standard dimensions are wrong.
+    #[error("[groove.profile] standard: {0}")]
+    Standard(#[from] StandardError),
+}
+
+impl Job {
+    /// Read and check a job file.
+    pub fn load(path: &Path) -> Result<Job, JobError> {
+        let text = std::fs::read_to_string(path).map_err(|source| JobError::Read {
+            path: path.to_owned(),
+            source,
+        })?;
+        let mut job = Job::parse(&text).map_err(|source| JobError::Parse {
+            path: path.to_owned(),
+            source: Box::new(source),
+        })?;
+        job.dir = path.parent().map(Path::to_owned).unwrap_or_default();
+        job.validate()?;
+        Ok(job)
+    }
+
+    /// Parse job TOML (without checking values; see [`Job::validate`]).
+    pub fn parse(text: &str) -> Result<Job, toml::de::Error> {
+        toml::from_str(text)
+    }
+
+    /// Check every value's range, naming the key.
+    pub fn validate(&self) -> Result<(), JobError> {
+        let positive = |key: &'static str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(JobError::Invalid {
+                    key,
+                    value: v.to_string(),
+                    why: "must be a positive number".into(),
+                })
+            }
+        };
+        positive("groove.lead", self.groove.lead)?;
+        positive("groove.length", self.groove.length)?;
+        if !self.groove.z_start.is_finite() {
+            return Err(JobError::Invalid {
+                key: "groove.z_start",
+                value: self.groove.z_start.to_string(),
+                why: "must be a finite number".into(),
+            });
+        }
+        if self.groove.starts == 0 {
+            return Err(JobError::Invalid {
+                key: "groove.starts",
+                value: "0".into(),
+                why: "a groove has at least one start".into(),
+            });
+        }
+        positive("tool.ring_radius", self.tool.ring_radius)?;
+        positive("tool.nose_radius", self.tool.nose_radius)?;
+        if self.tool.nose_radius >= self.tool.ring_radius {
+            return Err(JobError::Invalid {
+                key: "tool.nose_radius",
+                value: self.tool.nose_radius.to_string(),
+                why: format!(
+                    "must be smaller than ring_radius ({})",
+                    self.tool.ring_radius
+                ),
+            });
+        }
+        if self.tool.inserts == 0 {
+            return Err(JobError::Invalid {
+                key: "tool.inserts",
+                value: "0".into(),
+                why: "the ring carries at least one insert".into(),
+            });
+        }
+        if let Some(d) = self.tool.installation_angle_deg {
+            if !(0.0..90.0).contains(&d) {
+                return Err(JobError::Invalid {
+                    key: "tool.installation_angle_deg",
+                    value: d.to_string(),
+                    why: "must be at least 0° and below 90°".into(),
+                });
+            }
+        }
+        if let Some(a) = self.tool.edge_arc_deg {
+            if !(a > 0.0 && a <= 360.0) {
+                return Err(JobError::Invalid {
+                    key: "tool.edge_arc_deg",
+                    value: a.to_string(),
+                    why: "must be above 0° and at most 360°".into(),
+                });
+            }
+        }
+        positive("cut.delta", self.cut.delta)?;
+        positive("cut.axial_feed", self.cut.axial_feed)?;
+        positive("cut.workpiece_rpm", self.cut.workpiece_rpm)?;
+        positive("cut.ring_rpm", self.cut.ring_rpm)?;
+        if let Some(f) = self.cut.plunge_feed {
+            positive("cut.plunge_feed", f)?;
+        }
+        if self.cut.axial_feed >= self.groove.lead / f64::from(self.groove.starts) {
+            return Err(JobError::Invalid {
+                key: "cut.axial_feed",
+                value: self.cut.axial_feed.to_string(),
+                why: format!(
+                    "must be well below the axial pitch lead / starts = {} mm",
+                    self.groove.lead / f64::from(self.groove.starts)
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// Lead parameter p = ±lead / 2π (+ right hand).
+    pub fn p(&self) -> f64 {
+        let p = self.groove.lead / TAU;
+        match self.groove.hand {
+            Hand::Right => p,
+            Hand::Left => -p,
+        }
+    }
+
+    /// Polar period 2π / starts.
+    pub fn period(&self) -> f64 {
+        TAU / f64::from(self.groove.starts)
+    }
+
+    /// The groove's transverse profile, from points or a standard.
+    pub fn profile(&self) -> Result<Profile, JobError> {
+        let spec = &self.groove.profile;
+        let standard_keys = [
+            ("major_diameter", spec.major_diameter.is_some()),
+            ("root_radius", spec.root_radius.is_some()),
+            ("crest_clearance", spec.crest_clearance.is_some()),
+            ("ball_diameter", spec.ball_diameter.is_some()),
+            ("groove_radius", spec.groove_radius.is_some()),
+            ("pitch_diameter", spec.pitch_diameter.is_some()),
+            ("outer_diameter", spec.outer_diameter.is_some()),
+        ];
+        match (&spec.points, spec.standard) {
+            (Some(_), Some(_)) => Err(JobError::ProfileSpec(
+                "give either points or standard, not both".into(),
+            )),
+            (None, None) => Err(JobError::ProfileSpec(
+                "give points = \"file.csv\" or standard = \"trapezoidal\" | \"acme\" | \"ball-arc\""
+                    .into(),
+            )),
+            (Some(file), None) => {
+                if let Some((key, _)) = standard_keys.iter().find(|(_, set)| *set) {
+                    return Err(JobError::ProfileSpec(format!(
+                        "{key} belongs to a standard profile, not to points"
+                    )));
+                }
+                let path = self.dir.join(file);
+                let text = std::fs::read_to_string(&path).map_err(|source| JobError::Read {
+                    path: path.clone(),
+                    source,
+                })?;
+                let section = match spec.section.unwrap_or(SectionSpec::Transverse) {
+                    SectionSpec::Transverse => Section::Transverse,
+                    SectionSpec::Axial => Section::Axial,
+                };
+                let points_err = |source| JobError::Points {
+                    path: path.clone(),
+                    source,
+                };
+                let rows = points::read_csv(&text).map_err(points_err)?;
+                points::profile(
+                    &rows,
+                    section,
+                    spec.mirror.unwrap_or(false),
+                    self.p(),
+                    self.groove.starts,
+                )
+                .map_err(points_err)
+            }
+            (None, Some(kind)) => {
+                if spec.section == Some(SectionSpec::Transverse) || spec.mirror.is_some() {
+                    return Err(JobError::ProfileSpec(
+                        "standard profiles are axial sections of a whole pitch: leave out \
+                         section = \"transverse\" and mirror"
+                            .into(),
+                    ));
+                }
+                let standard = self.standard(kind)?;
+                let pitch = self.groove.lead / f64::from(self.groove.starts);
+                Ok(Profile::from_axial(
+                    standard.pieces(pitch)?,
+                    self.p(),
+                    self.period(),
+                ))
+            }
+        }
+    }
+
+    fn standard(&self, kind: StandardKind) -> Result<StandardProfile, JobError> {
+        let spec = &self.groove.profile;
+        let need = |key: &'static str, v: Option<f64>| {
+            v.ok_or_else(|| JobError::ProfileSpec(format!("standard = {kind:?} needs {key}")))
+        };
+        let refuse = |key: &'static str, set: bool| {
+            if set {
+                Err(JobError::ProfileSpec(format!(
+                    "{key} is not a dimension of standard = {kind:?}"
+                )))
+            } else {
+                Ok(())
+            }
+        };
+        Ok(match kind {
+            StandardKind::Trapezoidal | StandardKind::Acme => {
+                refuse("ball_diameter", spec.ball_diameter.is_some())?;
+                refuse("groove_radius", spec.groove_radius.is_some())?;
+                refuse("pitch_diameter", spec.pitch_diameter.is_some())?;
+                refuse("outer_diameter", spec.outer_diameter.is_some())?;
+                let d = need("major_diameter", spec.major_diameter)?;
+                if kind == StandardKind::Trapezoidal {
+                    StandardProfile::IsoTrapezoidal(IsoTrapezoidal::new(
+                        d,
+                        spec.root_radius,
+                        spec.crest_clearance,
+                    )?)
+                } else {
+                    refuse("crest_clearance", spec.crest_clearance.is_some())?;
+                    StandardProfile::Acme(AcmeGeneralPurpose::new(d, spec.root_radius)?)
+                }
+            }
+            StandardKind::BallArc => {
+                refuse("major_diameter", spec.major_diameter.is_some())?;
+                refuse("root_radius", spec.root_radius.is_some())?;
+                refuse("crest_clearance", spec.crest_clearance.is_some())?;
+                StandardProfile::BallArc(BallArc::new(
+                    need("ball_diameter", spec.ball_diameter)?,
+                    need("groove_radius", spec.groove_radius)?,
+                    need("pitch_diameter", spec.pitch_diameter)?,
+                    need("outer_diameter", spec.outer_diameter)?,
+                )?)
+            }
+        })
+    }
+
+    /// The ring, with the installation angle resolved: given, or the lead angle at the
+    /// profile's mean radius, atan(|p| / ρ_mean).
+    pub fn ring(&self, profile: &Profile) -> Ring {
+        let installation = match self.tool.installation_angle_deg {
+            Some(d) => d.to_radians(),
+            None => {
+                let (lo, hi) = profile.radius_range();
+                (self.p().abs() / ((lo + hi) / 2.0)).atan()
+            }
+        };
+        Ring {
+            whirling: self.tool.whirling,
+            radius: self.tool.ring_radius,
+            nose: self.tool.nose_radius,
+            installation,
+            edge_half_angle: self.tool.edge_arc_deg.unwrap_or(180.0).to_radians() / 2.0,
+        }
+    }
+}

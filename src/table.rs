@@ -1,0 +1,227 @@
+//! The cutter-location table of one period: X(ψ), densely sampled and checked.
+//!
+//! By screw invariance (kinematics.md) every profile point has one X and one phase ψ, and the
+//! whole groove's path follows from X(ψ) over one period. This module samples the profile,
+//! solves the linkage at every sample, and refines until the polyline through the samples is
+//! within `tolerance` of the true X(ψ) (as a normal error), so that segment selection can work
+//! on samples alone. Along the way it finds what makes a profile unwhirlable: a point with no
+//! pose, ψ turning back, or X jumping (the ring meeting the groove on another branch).
+
+use crate::linkage::{Contact, Linkage, LinkageError};
+use crate::profile::Profile;
+use glam::DVec2;
+use std::f64::consts::TAU;
+
+/// One solved profile sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// Profile parameter.
+    pub u: f64,
+    /// Profile point (transverse plane), mm.
+    pub pos: DVec2,
+    /// The pose and its phase (unwrapped along the profile).
+    pub contact: Contact,
+}
+
+/// The cutter-location table of one period, ordered by increasing phase ψ.
+#[derive(Debug, Clone)]
+pub struct Table {
+    /// Samples, ψ strictly increasing; the last is the first shifted by one period.
+    pub samples: Vec<Sample>,
+    /// Polar period 2π / starts.
+    pub period: f64,
+}
+
+/// Why no table could be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TableError {
+    /// A profile point has no pose.
+    #[error("profile point ({x:.4}, {y:.4}) (polar angle {angle_deg:.3}°): {source}")]
+    Linkage {
+        /// Transverse x of the point.
+        x: f64,
+        /// Transverse y of the point.
+        y: f64,
+        /// Its polar angle, degrees.
+        angle_deg: f64,
+        /// Why.
+        source: LinkageError,
+    },
+    /// The phase turns back along the profile: the ring meets the groove on another branch.
+    #[error(
+        "interference near profile point ({x:.4}, {y:.4}) (polar angle {angle_deg:.3}°): the \
+         phase ψ turns back there, so the ring would cut this stretch from another branch \
+         (a flank or a neighbouring thread)"
+    )]
+    PhaseTurnsBack {
+        /// Transverse x.
+        x: f64,
+        /// Transverse y.
+        y: f64,
+        /// Polar angle, degrees.
+        angle_deg: f64,
+    },
+    /// X jumps between neighbouring profile points.
+    #[error(
+        "interference near profile point ({x:.4}, {y:.4}) (polar angle {angle_deg:.3}°): X jumps \
+         by {jump:.4} mm between neighbouring profile points, so the ring meets the groove on \
+         another branch"
+    )]
+    XJumps {
+        /// Transverse x.
+        x: f64,
+        /// Transverse y.
+        y: f64,
+        /// Polar angle, degrees.
+        angle_deg: f64,
+        /// Size of the jump, mm.
+        jump: f64,
+    },
+}
+
+/// Samples per mm of profile to start from, and the largest phase step kept between samples.
+const START_PER_MM: f64 = 2.0;
+const MAX_PHASE_STEP: f64 = 0.5 * std::f64::consts::PI / 180.0;
+/// Below this parameter step a change that will not shrink is a jump, not a slope.
+const MIN_STEP: f64 = 1e-9;
+
+impl Table {
+    /// Sample `profile`, solve `linkage` at every sample and refine until the sample polyline
+    /// is within `tolerance` mm (normal error) of X(ψ) and no phase step exceeds half a degree.
+    pub fn build(
+        profile: &Profile,
+        linkage: &Linkage,
+        tolerance: f64,
+    ) -> Result<Table, TableError> {
+        let solve = |u: f64| -> Result<Sample, TableError> {
+            let point = profile.point(u);
+            linkage
+                .solve(&point)
+                .map(|contact| Sample {
+                    u,
+                    pos: point.pos,
+                    contact,
+                })
+                .map_err(|source| TableError::Linkage {
+                    x: point.pos.x,
+                    y: point.pos.y,
+                    angle_deg: point.pos.to_angle().to_degrees(),
+                    source,
+                })
+        };
+        // Start: every piece boundary and an even spread inside each piece.
+        let mut us = Vec::new();
+        for pair in profile.breaks().windows(2) {
+            let (a, b) = (pair[0], pair[1]);
+            let parts = ((b - a) * START_PER_MM).ceil().max(4.0) as usize;
+            us.extend((0..parts).map(|k| a + (b - a) * k as f64 / parts as f64));
+        }
+        us.push(profile.length());
+        let mut done: Vec<Sample> = Vec::with_capacity(us.len() * 4);
+        let mut pending: Vec<Sample> = us
+            .iter()
+            .rev()
+            .map(|&u| solve(u))
+            .collect::<Result<_, _>>()?;
+        // Depth-first refinement: `pending` is a stack with the next sample on top.
+        let mut first = pending.pop().expect("at least one sample");
+        first.contact.phase = first.contact.phase.rem_euclid(TAU);
+        done.push(first);
+        while let Some(mut next) = pending.pop() {
+            let prev = *done.last().expect("started with one sample");
+            unwrap_near(&mut next, prev.contact.phase);
+            let du = next.u - prev.u;
+            let mid = solve(prev.u + du / 2.0).map(|mut m| {
+                unwrap_near(&mut m, prev.contact.phase);
+                m
+            })?;
+            let dev = chord_deviation(&prev, &next, &mid);
+            let step = (next.contact.phase - prev.contact.phase).abs();
+            if (dev > tolerance || step > MAX_PHASE_STEP) && du > MIN_STEP {
+                pending.push(next);
+                pending.push(mid);
+                continue;
+            }
+            // Refinement that stopped only because the step is tiny found a discontinuity.
+            let jump = (next.contact.pose.x - prev.contact.pose.x).abs();
+            if du <= MIN_STEP && (jump > tolerance || step > MAX_PHASE_STEP) {
+                return Err(TableError::XJumps {
+                    x: mid.pos.x,
+                    y: mid.pos.y,
+                    angle_deg: mid.pos.to_angle().to_degrees(),
+                    jump,
+                });
+            }
+            done.push(next);
+        }
+        let period = profile.period();
+        check_monotonic(&done, period)?;
+        if done[done.len() - 1].contact.phase < done[0].contact.phase {
+            done.reverse();
+        }
+        Ok(Table {
+            samples: done,
+            period,
+        })
+    }
+
+    /// X at phase `psi` (any period), by linear interpolation between samples.
+    pub fn x_at(&self, psi: f64) -> f64 {
+        let first = self.samples[0].contact.phase;
+        let local = first + (psi - first).rem_euclid(self.period);
+        let i = self
+            .samples
+            .partition_point(|s| s.contact.phase <= local)
+            .clamp(1, self.samples.len() - 1);
+        let (a, b) = (&self.samples[i - 1].contact, &self.samples[i].contact);
+        let t = (local - a.phase) / (b.phase - a.phase);
+        a.pose.x + t * (b.pose.x - a.pose.x)
+    }
+
+    /// The range of Z over the period's poses (the contact sits at Z − Z_u on the workpiece).
+    pub fn z_range(&self) -> (f64, f64) {
+        self.samples
+            .iter()
+            .map(|s| s.contact.pose.z)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), z| {
+                (lo.min(z), hi.max(z))
+            })
+    }
+}
+
+/// Shift `sample`'s phase by whole turns to lie within half a turn of `near`.
+fn unwrap_near(sample: &mut Sample, near: f64) {
+    let phase = &mut sample.contact.phase;
+    *phase = near + (*phase - near + TAU / 2.0).rem_euclid(TAU) - TAU / 2.0;
+}
+
+/// Normal deviation of the middle sample from the straight line X(ψ) between its neighbours.
+pub fn chord_deviation(a: &Sample, b: &Sample, mid: &Sample) -> f64 {
+    let (pa, pb, pm) = (a.contact.phase, b.contact.phase, mid.contact.phase);
+    if (pb - pa).abs() < 1e-300 {
+        return (mid.contact.pose.x - a.contact.pose.x).abs() * mid.contact.normal_x;
+    }
+    let lin = a.contact.pose.x + (pm - pa) / (pb - pa) * (b.contact.pose.x - a.contact.pose.x);
+    (mid.contact.pose.x - lin).abs() * mid.contact.normal_x
+}
+
+/// ψ must run one way over the whole period and cover exactly one period.
+fn check_monotonic(samples: &[Sample], period: f64) -> Result<(), TableError> {
+    let total = samples[samples.len() - 1].contact.phase - samples[0].contact.phase;
+    let dir = total.signum();
+    let turned_back = |s: &Sample| TableError::PhaseTurnsBack {
+        x: s.pos.x,
+        y: s.pos.y,
+        angle_deg: s.pos.to_angle().to_degrees(),
+    };
+    for pair in samples.windows(2) {
+        if (pair[1].contact.phase - pair[0].contact.phase) * dir <= 0.0 {
+            return Err(turned_back(&pair[1]));
+        }
+    }
+    if (total.abs() - period).abs() > 1e-6 {
+        // The phase wound a different amount than one period: somewhere it ran off the branch.
+        return Err(turned_back(&samples[samples.len() / 2]));
+    }
+    Ok(())
+}
