@@ -139,7 +139,7 @@ pub fn scallop(table: &Table, linkage: &Linkage, feed: f64) -> f64 {
     let p = linkage.p;
     let spacing = pass_spacing(p, feed);
     let drift = spacing / TAU; // dτ/dψ within a pass
-    let picks = 120.min(table.samples.len());
+    let picks = 64.min(table.samples.len());
     (0..picks)
         .map(|k| &table.samples[k * (table.samples.len() - 1) / picks])
         .map(|s| {
@@ -156,31 +156,32 @@ pub fn scallop(table: &Table, linkage: &Linkage, feed: f64) -> f64 {
                     };
                     linkage.gap(q, &pose)
                 };
-                minimise(gap, psi_u - 0.2, psi_u + 0.2, 80)
+                minimise(gap, psi_u - 0.2, psi_u + 0.2, 24, 40)
             };
             let between = |tau: f64| pass(tau).min(pass(tau - spacing));
-            -minimise(|t| -between(t), spacing.min(0.0), spacing.max(0.0), 0)
+            -minimise(|t| -between(t), spacing.min(0.0), spacing.max(0.0), 0, 32)
         })
         .fold(0.0, f64::max)
 }
 
-/// Minimum of `f` over `[a, b]`: a scan of `scan` steps (0: none) to find the basin, then a
-/// golden-section search in it.
-fn minimise(f: impl Fn(f64) -> f64, a: f64, b: f64, scan: usize) -> f64 {
+/// Minimum of `f` over `[a, b]`: a scan of `scan` steps (0: none) to find the basin, then
+/// `steps` golden-section steps in it (each shrinks the bracket by 0.618).
+fn minimise(f: impl Fn(f64) -> f64, a: f64, b: f64, scan: usize, steps: usize) -> f64 {
     let (mut lo, mut hi) = (a, b);
     if scan > 0 {
         let step = (b - a) / scan as f64;
         let best = (0..=scan)
             .map(|k| a + step * k as f64)
-            .min_by(|x, y| f(*x).total_cmp(&f(*y)))
-            .unwrap_or(a);
+            .map(|x| (x, f(x)))
+            .min_by(|x, y| x.1.total_cmp(&y.1))
+            .map_or(a, |(x, _)| x);
         lo = (best - step).max(a);
         hi = (best + step).min(b);
     }
     let g = (5f64.sqrt() - 1.0) / 2.0;
     let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
     let (mut f1, mut f2) = (f(x1), f(x2));
-    for _ in 0..60 {
+    for _ in 0..steps {
         if f1 < f2 {
             hi = x2;
             (x2, f2) = (x1, f1);

@@ -33,8 +33,8 @@ pub struct Interference {
 }
 
 /// How many poses and surface helices to check per period.
-const POSES: usize = 96;
-const HELICES: usize = 160;
+const POSES: usize = 64;
+const HELICES: usize = 120;
 
 /// Check poses spread over the table. `tolerance` is the depth below which a touch counts as
 /// the contact itself (the table's own accuracy).
@@ -60,20 +60,37 @@ pub fn check(
     for k in 0..POSES.min(n) {
         let sample = &table.samples[k * (n - 1) / POSES.min(n)];
         let pose = sample.contact.pose;
+        let torus = linkage.torus(&pose);
         for start in 0..starts {
             let turn_start = table.period * f64::from(start);
             for v in &helices {
+                // The helix through this profile point, seen in the machine frame at this pose:
+                // θ ↦ Rz(C + θ)·B + p·θ·ẑ.
                 let base = DVec2::from_angle(turn_start).rotate(*v);
                 let point = |theta: f64| {
-                    turn(DVec3::new(base.x, base.y, 0.0), theta) + DVec3::Z * p * theta
+                    turn(DVec3::new(base.x, base.y, 0.0), pose.c + theta) + DVec3::Z * p * theta
                 };
+                let gap = |theta: f64| torus.gap(point(theta));
                 let (lo, hi) = sorted((pose.z - reach) / p, (pose.z + reach) / p);
-                let dtheta = step / base.length().max(p.abs()).max(1e-9);
-                if let Some((theta, depth)) =
-                    deepest(|t| linkage.gap(point(t), &pose), lo, hi, dtheta)
-                {
+                let count = ((hi - lo) * base.length().max(p.abs()) / step)
+                    .ceil()
+                    .max(2.0);
+                // The scan steps the point along the helix by a fixed rotation (no trig per
+                // sample); refinement evaluates `gap` exactly.
+                let dtheta = (hi - lo) / count;
+                let (sin, cos) = dtheta.sin_cos();
+                let start = point(lo);
+                let mut xy = DVec2::new(start.x, start.y);
+                let mut z = start.z;
+                let scan = std::iter::from_fn(|| {
+                    let g = torus.gap(DVec3::new(xy.x, xy.y, z));
+                    xy = DVec2::new(cos * xy.x - sin * xy.y, sin * xy.x + cos * xy.y);
+                    z += p * dtheta;
+                    Some(g)
+                });
+                if let Some((theta, depth)) = deepest(gap, scan, lo, hi, count as usize, step) {
                     if depth > tolerance {
-                        let hit = point(theta);
+                        let hit = turn(point(theta), -pose.c); // back to the workpiece frame
                         return Err(Interference {
                             at_x: sample.pos.x,
                             at_y: sample.pos.y,
@@ -99,26 +116,37 @@ fn sorted(a: f64, b: f64) -> (f64, f64) {
 }
 
 /// The deepest point (most negative gap) along `[lo, hi]`: a scan at `step`, refined by golden
-/// section around every scan minimum that comes within one step of the tool.
-fn deepest(gap: impl Fn(f64) -> f64, lo: f64, hi: f64, step: f64) -> Option<(f64, f64)> {
-    let count = ((hi - lo) / step).ceil().max(2.0) as usize;
-    let values: Vec<(f64, f64)> = (0..=count)
-        .map(|i| {
-            let t = lo + (hi - lo) * i as f64 / count as f64;
-            (t, gap(t))
-        })
-        .collect();
+/// section around every scan minimum that comes near the tool.
+///
+/// `scan` yields the gap at the `count + 1` evenly spaced scan points, `gap` evaluates it
+/// anywhere; a minimum counts when it is within `near` of the tool.
+fn deepest(
+    gap: impl Fn(f64) -> f64,
+    mut scan: impl Iterator<Item = f64>,
+    lo: f64,
+    hi: f64,
+    count: usize,
+    near: f64,
+) -> Option<(f64, f64)> {
+    let at = |i: usize| lo + (hi - lo) * i as f64 / count as f64;
+    let mut next = || scan.next().unwrap_or(f64::INFINITY);
     let mut worst: Option<(f64, f64)> = None;
-    for i in 1..values.len() - 1 {
-        let (t, g) = values[i];
-        if g > values[i - 1].1 || g > values[i + 1].1 || g > step {
-            continue;
+    let mut window = [next(), next(), 0.0];
+    for i in 1..count {
+        window[2] = next();
+        let [before, here, after] = window;
+        if here <= near && here <= before && here <= after {
+            let refined = golden_min(&gap, at(i - 1), at(i + 1));
+            let (t, g) = if refined.1 < here {
+                refined
+            } else {
+                (at(i), here)
+            };
+            if g < 0.0 && worst.is_none_or(|w| -g > w.1) {
+                worst = Some((t, -g));
+            }
         }
-        let refined = golden_min(&gap, values[i - 1].0, values[i + 1].0);
-        let (t, g) = if refined.1 < g { refined } else { (t, g) };
-        if g < 0.0 && worst.is_none_or(|w| -g > w.1) {
-            worst = Some((t, -g));
-        }
+        window = [here, after, 0.0];
     }
     worst
 }

@@ -223,11 +223,17 @@ impl Linkage {
     /// Signed distance from the workpiece point `q` (frame W) to the ring's torus at `pose`:
     /// distance to the tip circle minus the nose radius. Negative inside the tool.
     pub fn gap(&self, q: DVec3, pose: &Pose) -> f64 {
-        let d = turn(q, pose.c) - DVec3::new(pose.x, 0.0, pose.z);
-        let a = self.axis();
-        let along = d.dot(a);
-        let radial = (d - along * a).length();
-        (radial - self.ring.radius).hypot(along) - self.ring.nose
+        self.torus(pose).gap(turn(q, pose.c))
+    }
+
+    /// The ring's torus at `pose`, in the machine frame.
+    pub fn torus(&self, pose: &Pose) -> Torus {
+        Torus {
+            centre: DVec3::new(pose.x, 0.0, pose.z),
+            axis: self.axis(),
+            radius: self.ring.radius,
+            nose: self.ring.nose,
+        }
     }
 
     /// The root of `g` nearest `c0`: step outwards on both sides until the sign changes, stop
@@ -260,6 +266,31 @@ impl Linkage {
             }
         }
         None
+    }
+}
+
+/// The swept ring at one pose, in the machine frame: the tip circle (centre, unit axis,
+/// radius R) thickened by the nose radius r.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Torus {
+    /// Ring centre O_M.
+    pub centre: DVec3,
+    /// Unit ring axis a_M.
+    pub axis: DVec3,
+    /// R.
+    pub radius: f64,
+    /// r.
+    pub nose: f64,
+}
+
+impl Torus {
+    /// Signed distance from `q_m` (machine frame) to the torus: distance to the tip circle
+    /// minus r; negative inside the tool.
+    pub fn gap(&self, q_m: DVec3) -> f64 {
+        let d = q_m - self.centre;
+        let along = d.dot(self.axis);
+        let radial = (d - along * self.axis).length();
+        (radial - self.radius).hypot(along) - self.nose
     }
 }
 

@@ -1,0 +1,231 @@
+//! `whirl plan` end to end: every example plans; every refusal exits non-zero, says what is
+//! wrong and where, and writes nothing.
+
+use crate::util;
+use std::ffi::OsStr;
+use std::path::Path;
+
+struct Run {
+    ok: bool,
+    stdout: String,
+    stderr: String,
+}
+
+fn plan(job: &Path, out: &Path, report: &Path, machine: Option<&Path>) -> Run {
+    let mut args: Vec<&OsStr> = vec![
+        OsStr::new("plan"),
+        job.as_os_str(),
+        OsStr::new("-o"),
+        out.as_os_str(),
+        OsStr::new("--report"),
+        report.as_os_str(),
+    ];
+    if let Some(m) = machine {
+        args.push(OsStr::new("--machine"));
+        args.push(m.as_os_str());
+    }
+    let o = util::whirl(&args);
+    Run {
+        ok: o.status.success(),
+        stdout: String::from_utf8_lossy(&o.stdout).into(),
+        stderr: String::from_utf8_lossy(&o.stderr).into(),
+    }
+}
+
+/// Run a job that must be refused; check nothing was written and return the message.
+fn refused(job: &Path, machine: Option<&Path>) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let (out, report) = (dir.path().join("p.nc"), dir.path().join("r.json"));
+    let run = plan(job, &out, &report, machine);
+    assert!(!run.ok, "must be refused: {}", run.stdout);
+    assert!(!out.exists() && !report.exists(), "nothing may be written");
+    assert!(
+        std::fs::read_dir(dir.path()).unwrap().next().is_none(),
+        "no temporary files left behind"
+    );
+    assert!(run.stderr.starts_with("error: "), "{}", run.stderr);
+    assert!(!run.stderr.contains("panicked") && !run.stderr.contains("backtrace"));
+    run.stderr
+}
+
+/// A copy of an example job with `edit` applied to its text, in `dir`, with its profile.
+fn edited(dir: &Path, name: &str, edit: impl Fn(String) -> String) -> std::path::PathBuf {
+    let src = util::example(name);
+    let text = std::fs::read_to_string(&src).unwrap();
+    let profile = src.parent().unwrap().join("profile.csv");
+    if profile.exists() {
+        std::fs::copy(&profile, dir.join("profile.csv")).unwrap();
+    }
+    util::write(dir, "job.toml", &edit(text))
+}
+
+#[test]
+fn every_example_plans_within_delta_and_writes_program_and_report() {
+    let machine_limit = 256; // grblHAL's line length, machine-profiles/sim.toml
+    for job in util::examples() {
+        let dir = tempfile::tempdir().unwrap();
+        let (out, report) = (dir.path().join("p.nc"), dir.path().join("r.json"));
+        let run = plan(&job, &out, &report, None);
+        assert!(run.ok, "{}: {}", job.display(), run.stderr);
+        let text = std::fs::read_to_string(&out).unwrap();
+        assert!(text.lines().all(|l| l.len() <= machine_limit));
+        assert!(
+            text.lines().any(|l| l.starts_with("G93")),
+            "linked moves in inverse time"
+        );
+        let r: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        for key in [
+            "segments",
+            "nodes_per_period",
+            "interp_error_mm",
+            "scallop_mm",
+            "max_error_mm",
+            "delta_mm",
+            "cycle_time_s",
+        ] {
+            assert!(r[key].is_number(), "{}: report lacks {key}", job.display());
+        }
+        assert!(r["max_error_mm"].as_f64().unwrap() <= r["delta_mm"].as_f64().unwrap());
+        let linked = text
+            .lines()
+            .filter(|l| l.contains(" F") && l.contains('C'))
+            .count();
+        assert!(linked >= r["segments"].as_u64().unwrap() as usize);
+    }
+}
+
+#[test]
+fn han_liu_points_are_refused_naming_the_outlier() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv =
+        std::fs::read_to_string(util::root().join("../shared/data/han-liu-table1.csv")).unwrap();
+    util::write(dir.path(), "han-liu.csv", &csv);
+    let job = util::write(
+        dir.path(),
+        "job.toml",
+        r#"
+[groove]
+lead = 88.0
+starts = 2
+hand = "right"
+z_start = 0.0
+length = 20.0
+[groove.profile]
+section = "transverse"
+points = "han-liu.csv"
+mirror = true
+[tool]
+whirling = "internal"
+ring_radius = 120.0
+nose_radius = 1.2
+inserts = 4
+installation_angle_deg = 10.0
+[cut]
+delta = 0.01
+axial_feed = 0.1
+workpiece_rpm = 10.0
+ring_rpm = 1500.0
+"#,
+    );
+    let msg = refused(&job, None);
+    assert!(
+        msg.contains("han-liu.csv") && msg.contains("line 9"),
+        "{msg}"
+    );
+    assert!(
+        msg.contains("25.8") && msg.contains("12.78") && msg.contains("outlier"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn an_unknown_key_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = edited(dir.path(), "double-start", |t| {
+        t.replace("inserts = 4", "insert = 4")
+    });
+    let msg = refused(&job, None);
+    assert!(msg.contains("insert"), "{msg}");
+}
+
+#[test]
+fn a_missing_profile_file_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = edited(dir.path(), "double-start", |t| {
+        t.replace("profile.csv", "nowhere.csv")
+    });
+    let msg = refused(&job, None);
+    assert!(msg.contains("nowhere.csv"), "{msg}");
+}
+
+#[test]
+fn a_value_out_of_range_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = edited(dir.path(), "double-start", |t| {
+        t.replace("delta = 0.005", "delta = -1.0")
+    });
+    let msg = refused(&job, None);
+    assert!(msg.contains("cut.delta"), "{msg}");
+}
+
+#[test]
+fn a_feed_whose_scallop_eats_delta_is_refused_with_the_feed_that_would_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = edited(dir.path(), "double-start", |t| {
+        t.replace("axial_feed = 0.1 ", "axial_feed = 0.6 ")
+    });
+    let msg = refused(&job, None);
+    assert!(
+        msg.contains("scallop") && msg.contains("axial_feed"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn a_nose_too_big_for_the_root_is_refused_with_the_depth_left() {
+    let dir = tempfile::tempdir().unwrap();
+    // The ball groove's radius is 3.429 mm: a 4 mm nose cannot follow it.
+    let job = edited(dir.path(), "ball-screw", |t| {
+        t.replace("nose_radius = 1.6", "nose_radius = 4.0")
+    });
+    let msg = refused(&job, None);
+    assert!(
+        msg.contains("concave") && msg.contains("radius 3.4"),
+        "{msg}"
+    );
+    assert!(
+        msg.contains("material") || msg.contains("does not fit"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn a_mismatched_installation_angle_is_refused_with_the_angles_that_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = edited(dir.path(), "trapezoidal", |t| {
+        t.replace(
+            "installation_angle_deg = 7.8",
+            "installation_angle_deg = 12.0",
+        )
+    });
+    let msg = refused(&job, None);
+    assert!(msg.contains("interference"), "{msg}");
+    assert!(msg.contains("installation angles that work"), "{msg}");
+}
+
+#[test]
+fn a_program_past_the_machine_travel_is_refused_naming_the_axis() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = std::fs::read_to_string(util::root().join("machine-profiles/sim.toml")).unwrap();
+    // The double-start example needs Z from about −13.5 to 13.5 mm.
+    let small = sim.replacen("min = -300.0", "min = -5.0", 1); // Z's lower travel
+    assert_ne!(
+        small, sim,
+        "the edit must apply to machine-profiles/sim.toml"
+    );
+    let machine = util::write(dir.path(), "small.toml", &small);
+    let job = edited(dir.path(), "double-start", |t| t);
+    let msg = refused(&job, Some(&machine));
+    assert!(msg.contains("Z") && msg.contains("-5"), "{msg}");
+}

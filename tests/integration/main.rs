@@ -1,0 +1,6 @@
+//! Integration tests: one binary, shared helpers in `util`.
+
+mod cli;
+mod linkage;
+mod sweep;
+mod util;
