@@ -1,1 +1,72 @@
-fn main() {}
+//! Planner benchmarks: node solves per second, and planning whole grooves (one of 100 mm).
+//!
+//! Run with `cargo bench --bench planner`; the README quotes the figures.
+
+use divan::{black_box, Bencher};
+use glam::DVec2;
+use std::f64::consts::{PI, TAU};
+use std::path::Path;
+use whirl::job::Job;
+use whirl::linkage::{Linkage, Ring, Whirling};
+use whirl::machine::MachineProfile;
+use whirl::profile::ProfilePoint;
+
+fn main() {
+    divan::main();
+}
+
+/// 1000 points of the reference groove ρ(φ) = 30 − 5·cos 3φ (shared/data/linkage-vectors.csv).
+fn lobe_points() -> Vec<ProfilePoint> {
+    (0..1000)
+        .map(|k| {
+            let phi = TAU / 3.0 * k as f64 / 1000.0;
+            let rho = 30.0 - 5.0 * (3.0 * phi).cos();
+            let drho = 15.0 * (3.0 * phi).sin();
+            let tangent = (DVec2::from_angle(phi) * drho + DVec2::from_angle(phi + PI / 2.0) * rho)
+                .normalize();
+            ProfilePoint {
+                u: phi,
+                pos: DVec2::from_angle(phi) * rho,
+                tangent,
+            }
+        })
+        .collect()
+}
+
+/// One linkage solve (kinematics.md: bracket near C₀, Brent), internal whirling.
+#[divan::bench(counter = divan::counter::ItemsCount::new(1000usize))]
+fn node_solves(bencher: Bencher) {
+    let points = lobe_points();
+    let linkage = Linkage {
+        p: 60.0 / TAU,
+        ring: Ring {
+            whirling: Whirling::Internal,
+            radius: 50.0,
+            nose: 1.0,
+            installation: 20f64.to_radians(),
+            edge_half_angle: PI / 2.0,
+        },
+    };
+    bencher.bench(|| {
+        for p in &points {
+            black_box(linkage.solve(black_box(p)).ok());
+        }
+    });
+}
+
+fn example(name: &str) -> Job {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples")
+        .join(name)
+        .join("job.toml");
+    Job::load(&path).expect("example job")
+}
+
+/// Every example job, planned whole but for the file writes; `ball-screw` is a 100 mm groove
+/// at Δ = 5 µm.
+#[divan::bench(args = ["double-start", "left-external", "trapezoidal", "ball-screw"], sample_count = 10)]
+fn plan_example(bencher: Bencher, name: &str) {
+    let job = example(name);
+    let machine = MachineProfile::builtin_sim().unwrap();
+    bencher.bench(|| black_box(whirl::plan::plan(&job, &machine).unwrap().report.segments));
+}

@@ -175,3 +175,49 @@ fn golden_min(f: &impl Fn(f64) -> f64, mut a: f64, mut b: f64) -> (f64, f64) {
         (x2, f2)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::linkage::{Ring, Whirling};
+    use crate::testing::lobe;
+    use std::f64::consts::{PI, TAU};
+
+    fn setup(radius: f64, delta_deg: f64, lead: f64) -> (Profile, Table, Linkage) {
+        let profile = lobe(lead);
+        let linkage = Linkage {
+            p: lead / TAU,
+            ring: Ring {
+                whirling: Whirling::Internal,
+                radius,
+                nose: 1.0,
+                installation: delta_deg.to_radians(),
+                edge_half_angle: PI / 2.0,
+            },
+        };
+        let table = Table::build(&profile, &linkage, 1e-4).expect("the contact itself is fine");
+        (profile, table, linkage)
+    }
+
+    #[test]
+    fn a_ring_whose_far_side_passes_through_the_crest_is_caught() {
+        // Tilted 45°, a 40 mm ring passes within R·cos δ = 28.3 mm of the axis on the side
+        // away from the contact: through the 35 mm crest of the neighbouring lobes.
+        let (profile, table, linkage) = setup(40.0, 45.0, 200.0);
+        let e = check(&profile, &table, &linkage, 3, 1e-3).unwrap_err();
+        assert!(e.depth > 0.1, "{e}");
+        let hit_radius = e.hit_x.hypot(e.hit_y);
+        assert!(
+            (25.0..=35.0 + 1e-6).contains(&hit_radius),
+            "a point of the groove: {e}"
+        );
+    }
+
+    #[test]
+    fn a_ring_that_clears_the_work_passes() {
+        // The reference case of linkage-vectors.csv: R·cos δ − r = 46.0 mm clears the 35 mm
+        // crest all round.
+        let (profile, table, linkage) = setup(50.0, 20.0, 60.0);
+        check(&profile, &table, &linkage, 3, 1e-3).unwrap();
+    }
+}

@@ -1,5 +1,67 @@
-//! whirl: plan, post and stream thread-whirling programs.
-#![allow(missing_docs)]
+//! whirl: a machine-controller bridge for thread-whirling lathes.
+//!
+//! A ring of inserts spins fast around a slowly turning workpiece; with standard (round-nose)
+//! inserts the machine must link C (workpiece turn), X (ring-centre offset) and Z (axial feed)
+//! so that the ring envelops the groove's profile. This crate plans that linkage from the
+//! groove and the tool, chooses as few segments as keep the profile error within the allowable
+//! error Δ, and writes the program for the machine's controller.
+//!
+//! The model, frames and sign conventions are those of `shared/design/kinematics.md`.
+//!
+//! # Data flow
+//!
+//! ```text
+//! job.toml + machine profile
+//!   → profile        (points + periodic spline, or a standard's axial section; validated)
+//!   → table          (the linkage at every profile sample: X(ψ) over one period)
+//!   → interference   (no other part of the ring cuts the groove)
+//!   → budget         (Δ shared: scallop, cusp, blending, rounding, interpolation)
+//!   → segment        (nodes in ψ, each span within its interpolation share)
+//!   → path           (lead-in, linked revolutions with axial feed, C rebasing, lead-out)
+//!   → gcode          (post-processor for the controller's dialect)
+//! ```
+//!
+//! Every arrow is a plain, synchronous function of values; [`plan::plan`] runs them in order
+//! and refuses, with the place and the cause, before anything is written.
+//!
+//! # Modules
+//!
+//! - [`job`]: the job file (groove, tool, cut).
+//! - [`machine`]: machine profiles: dialect, number type, travel, rates.
+//! - [`profile`]: groove sections ([`profile::points`], [`profile::spline`],
+//!   [`profile::standard`]).
+//! - [`linkage`]: kinematics.md's node solver, one profile point → one pose; [`brent`] its
+//!   root finder.
+//! - [`table`], [`interference`], [`budget`], [`segment`], [`path`]: the planner's steps.
+//! - [`gcode`]: the program model, writers and parser.
+//! - [`plan`]: all of the above in order, with the report.
+//!
+//! # Example
+//!
+//! ```
+//! use std::f64::consts::{PI, TAU};
+//! use glam::DVec2;
+//! use whirl::linkage::{Linkage, Ring, Whirling};
+//! use whirl::profile::ProfilePoint;
+//!
+//! // A root point of a groove (normal radial): kinematics.md's check values say the ring
+//! // centre sits at X = R − (ρ + r) with C = π − φ, whatever the installation angle.
+//! let linkage = Linkage {
+//!     p: 60.0 / TAU,
+//!     ring: Ring {
+//!         whirling: Whirling::Internal,
+//!         radius: 50.0,
+//!         nose: 1.0,
+//!         installation: 20f64.to_radians(),
+//!         edge_half_angle: PI / 2.0,
+//!     },
+//! };
+//! let root = ProfilePoint { u: 0.0, pos: DVec2::new(25.0, 0.0), tangent: DVec2::Y };
+//! let contact = linkage.solve(&root).unwrap();
+//! assert!((contact.pose.x - 24.0).abs() < 1e-9);
+//! assert!((contact.pose.c - PI).abs() < 1e-9);
+//! ```
+
 pub mod brent;
 pub mod budget;
 pub mod gcode;
@@ -12,3 +74,28 @@ pub mod plan;
 pub mod profile;
 pub mod segment;
 pub mod table;
+
+/// Shapes shared by the unit tests.
+#[cfg(test)]
+pub(crate) mod testing {
+    use crate::profile::points::{profile, Row, Section};
+    use crate::profile::Profile;
+    use std::f64::consts::TAU;
+
+    /// The three-lobe groove ρ(φ) = 30 − 5·cos 3φ of shared/data/linkage-vectors.csv,
+    /// 24 points of one period, for lead `lead` (right hand).
+    pub fn lobe(lead: f64) -> Profile {
+        let rows: Vec<Row> = (0..24)
+            .map(|k| {
+                let phi = TAU / 3.0 * k as f64 / 24.0;
+                let rho = 30.0 - 5.0 * (3.0 * phi).cos();
+                Row {
+                    line: k + 1,
+                    a: rho * phi.cos(),
+                    b: rho * phi.sin(),
+                }
+            })
+            .collect();
+        profile(&rows, Section::Transverse, false, lead / TAU, 3).expect("a valid profile")
+    }
+}

@@ -183,16 +183,7 @@ impl Linkage {
             Whirling::External => -nose.y.atan2(nose.x),
         };
         let g = |c: f64| self.meridian(nose, normal, c);
-        let c = self.bracketed_root(g, c0).ok_or_else(|| {
-            // Tell a ring that is too small apart from a missing root.
-            match self.place(turn(nose, c0)) {
-                Err(needed) => LinkageError::OutOfReach {
-                    needed,
-                    radius: self.ring.radius,
-                },
-                Ok(_) => LinkageError::NoRoot,
-            }
-        })?;
+        let c = self.bracketed_root(g, c0, nose)?;
         let n_m = turn(nose, c);
         let (x, z) = self.place(n_m).map_err(|needed| LinkageError::OutOfReach {
             needed,
@@ -237,15 +228,23 @@ impl Linkage {
     }
 
     /// The root of `g` nearest `c0`: step outwards on both sides until the sign changes, stop
-    /// a side where the ring is out of reach, then polish with Brent.
-    fn bracketed_root(&self, g: impl Fn(f64) -> f64, c0: f64) -> Option<f64> {
+    /// a side where the ring goes out of reach (the square root of condition 2 turns
+    /// negative), then polish with Brent. With no root, the error says whether the search ran
+    /// out of reach or out of angle.
+    fn bracketed_root(
+        &self,
+        g: impl Fn(f64) -> f64,
+        c0: f64,
+        nose: DVec3,
+    ) -> Result<f64, LinkageError> {
         let g0 = g(c0);
         if g0 == 0.0 {
-            return Some(c0);
+            return Ok(c0);
         }
         let steps = (BRACKET_REACH / BRACKET_STEP).round() as usize;
         // Per side: the last angle and value, and whether the side has left the reach.
         let mut sides = [(c0, g0, false); 2];
+        let mut out_of_reach = None;
         for k in 1..=steps {
             for ((prev_c, prev_g, left), dir) in sides.iter_mut().zip([1.0, -1.0]) {
                 if *left {
@@ -254,18 +253,27 @@ impl Linkage {
                 let c = c0 + dir * BRACKET_STEP * k as f64;
                 let gc = g(c);
                 if gc == 0.0 {
-                    return Some(c);
+                    return Ok(c);
                 }
                 if prev_g.is_finite() && gc.is_finite() && prev_g.signum() != gc.signum() {
-                    return brent::root(&g, *prev_c, c, 1e-14, 200);
+                    return brent::root(&g, *prev_c, c, 1e-14, 200).ok_or(LinkageError::NoRoot);
                 }
                 // A side that leaves the reachable range is done; one that starts outside it
                 // may still walk into it.
                 *left = prev_g.is_finite() && !gc.is_finite();
+                if *left {
+                    out_of_reach = self.place(turn(nose, c)).err();
+                }
                 (*prev_c, *prev_g) = (c, gc);
             }
         }
-        None
+        Err(match out_of_reach {
+            Some(needed) => LinkageError::OutOfReach {
+                needed,
+                radius: self.ring.radius,
+            },
+            None => LinkageError::NoRoot,
+        })
     }
 }
 
@@ -417,5 +425,51 @@ mod tests {
             rows += 1;
         }
         assert_eq!(rows, 26);
+    }
+
+    fn lobe_point(phi: f64) -> ProfilePoint {
+        let rho = 30.0 - 5.0 * (3.0 * phi).cos();
+        let drho = 15.0 * (3.0 * phi).sin();
+        let tangent =
+            (DVec2::from_angle(phi) * drho + DVec2::from_angle(phi + PI / 2.0) * rho).normalize();
+        ProfilePoint {
+            u: 0.0,
+            pos: DVec2::from_angle(phi) * rho,
+            tangent,
+        }
+    }
+
+    #[test]
+    fn a_narrow_cutting_edge_cuts_the_root_but_not_the_flank() {
+        let mut r = ring(Whirling::Internal, 50.0, 1.0, 20.0);
+        r.edge_half_angle = 10f64.to_radians();
+        let l = Linkage {
+            p: 60.0 / TAU,
+            ring: r,
+        };
+        // At the root the normal is radial: the contact is on the insert's axis.
+        l.solve(&lobe_point(0.0)).unwrap();
+        // Mid-flank the normal leans far from it.
+        let e = l.solve(&lobe_point(30f64.to_radians())).unwrap_err();
+        let LinkageError::OffEdge {
+            angle_deg,
+            limit_deg,
+        } = e
+        else {
+            panic!("{e}")
+        };
+        assert!(angle_deg > 10.0 && (limit_deg - 10.0).abs() < 1e-9, "{e}");
+    }
+
+    #[test]
+    fn a_ring_tilted_far_from_the_helix_finds_no_pose_on_the_flank() {
+        // Tilted 20° against a 5 mm lead (a lead angle of 1.5° at 30 mm): on the flank the
+        // meridian condition has no root within ±90° of the cutting side.
+        let l = Linkage {
+            p: 5.0 / TAU,
+            ring: ring(Whirling::Internal, 45.0, 1.0, 20.0),
+        };
+        let e = l.solve(&lobe_point(30f64.to_radians())).unwrap_err();
+        assert_eq!(e, LinkageError::NoRoot);
     }
 }

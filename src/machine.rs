@@ -499,6 +499,9 @@ pub fn check_limits(program: &Program, profile: &MachineProfile) -> Result<(), L
             Block::RebaseC { c } if !c.is_finite() => {
                 return Err(invalid(format!("G92 C value {c} is not finite")));
             }
+            // Nothing to check: G92.1 moves nothing, and `steps` reads the targets after
+            // it in the same continuous frame.
+            Block::ClearRebase => continue,
             _ => {}
         }
         let Some(target) = step.block.target() else {
@@ -611,7 +614,11 @@ pub fn cycle_time_s(program: &Program, profile: &MachineProfile) -> f64 {
                 .zip(delta)
                 .map(|(axis, d)| d.abs() / profile.max_rate(axis))
                 .fold(0.0, f64::max),
-            _ => 0.0,
+            Block::Comment(_)
+            | Block::RebaseC { .. }
+            | Block::ClearRebase
+            | Block::SpindleOn { .. }
+            | Block::SpindleOff => 0.0,
         };
     }
     minutes * 60.0
@@ -916,6 +923,44 @@ accel = 7200.0
     }
 
     #[test]
+    fn limits_and_cycle_time_read_c_unrebased_after_a_clear() {
+        // 720° renamed as 0°, G92.1: the controller reads 720° again, so the move to 780°
+        // is 60° in 0.001 min (60 000 deg/min, under 72 000), not 780°.
+        let mut p = profile(Dialect::GrblHal);
+        let prog = program(vec![
+            rapid(10.0, 0.0, 0.0),
+            Block::Linked {
+                x: 10.0,
+                z: 1.0,
+                c: 720.0,
+                minutes: 0.011,
+            },
+            Block::RebaseC { c: 0.0 },
+            Block::ClearRebase,
+            Block::Linked {
+                x: 10.0,
+                z: 1.1,
+                c: 780.0,
+                minutes: 0.001,
+            },
+        ]);
+        assert_eq!(check_limits(&prog, &p), Ok(()));
+        assert!((cycle_time_s(&prog, &p) - 0.012 * 60.0).abs() < 1e-9);
+        // Travel is checked in the same frame: 780° is over a limit of 750°.
+        p.axes.c.max = Some(750.0);
+        assert_eq!(
+            check_limits(&prog, &p),
+            Err(LimitError::Travel {
+                block: 4,
+                axis: Axis::C,
+                value: 780.0,
+                bound: Bound::Max,
+                limit: 750.0
+            })
+        );
+    }
+
+    #[test]
     fn travel_is_checked_with_unrebased_c() {
         let mut p = profile(Dialect::GrblHal);
         let prog = program(vec![rapid(170.0, 0.0, 0.0)]);
@@ -1080,7 +1125,7 @@ accel = 7200.0
         #[test]
         fn arbitrary_programs_never_panic(
             blocks in proptest::collection::vec(
-                (0..6u8, proptest::num::f64::ANY, proptest::num::f64::ANY, proptest::num::f64::ANY, proptest::num::f64::ANY),
+                (0..7u8, proptest::num::f64::ANY, proptest::num::f64::ANY, proptest::num::f64::ANY, proptest::num::f64::ANY),
                 0..20,
             ),
         ) {
@@ -1090,6 +1135,7 @@ accel = 7200.0
                 2 => Block::Linked { x: a, z: b, c, minutes: d },
                 3 => Block::RebaseC { c: a },
                 4 => Block::SpindleOn { rpm: a },
+                5 => Block::ClearRebase,
                 _ => Block::SpindleOff,
             }).collect();
             let prog = program(blocks);

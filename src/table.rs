@@ -225,3 +225,90 @@ fn check_monotonic(samples: &[Sample], period: f64) -> Result<(), TableError> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::linkage::{Ring, Whirling};
+    use crate::testing::lobe;
+    use std::f64::consts::PI;
+
+    fn linkage(radius: f64, delta_deg: f64, lead: f64) -> Linkage {
+        Linkage {
+            p: lead / TAU,
+            ring: Ring {
+                whirling: Whirling::Internal,
+                radius,
+                nose: 1.0,
+                installation: delta_deg.to_radians(),
+                edge_half_angle: PI / 2.0,
+            },
+        }
+    }
+
+    #[test]
+    fn the_reference_groove_gives_a_periodic_table_within_tolerance() {
+        let profile = lobe(60.0);
+        let l = linkage(50.0, 20.0, 60.0);
+        let t = Table::build(&profile, &l, 1e-4).unwrap();
+        let (first, last) = (
+            &t.samples[0].contact,
+            &t.samples[t.samples.len() - 1].contact,
+        );
+        assert!(
+            (last.phase - first.phase - TAU / 3.0).abs() < 1e-9,
+            "one period of ψ"
+        );
+        assert!((last.pose.x - first.pose.x).abs() < 1e-9, "X repeats");
+        // Between samples the polyline is within the tolerance of X(ψ): probe the middles.
+        for pair in t.samples.windows(2) {
+            let mid_u = (pair[0].u + pair[1].u) / 2.0;
+            let mut mid = l.solve(&profile.point(mid_u)).unwrap();
+            let near = pair[0].contact.phase;
+            mid.phase = near + (mid.phase - near + PI).rem_euclid(TAU) - PI;
+            let m = Sample {
+                u: mid_u,
+                pos: profile.point(mid_u).pos,
+                contact: mid,
+            };
+            assert!(chord_deviation(&pair[0], &pair[1], &m) <= 1e-4 * 1.5);
+        }
+    }
+
+    #[test]
+    fn a_flat_ring_gouging_a_concave_root_is_refused_as_phase_turning_back() {
+        // δ = 0: the ring lies in the transverse plane, its tip arc bending towards the axis,
+        // while the lobe's root (ρ = 25 at φ = 0) is concave, bending away: any tangency at
+        // the root gouges its sides, and the phase turns back there.
+        let e = Table::build(&lobe(60.0), &linkage(40.0, 0.0, 60.0), 1e-4).unwrap_err();
+        let TableError::PhaseTurnsBack { x, y, .. } = e else {
+            panic!("{e}")
+        };
+        assert!(
+            DVec2::new(x, y).to_angle().abs() < 1f64.to_radians(),
+            "at the root: {e}"
+        );
+    }
+
+    #[test]
+    fn a_branch_switch_is_refused_as_x_jumping() {
+        // A ring barely larger than the work, tilted 20°, meets the lobe on two branches.
+        let e = Table::build(&lobe(60.0), &linkage(36.5, 20.0, 60.0), 1e-4).unwrap_err();
+        assert!(
+            matches!(e, TableError::XJumps { jump, .. } if jump > 1e-4),
+            "{e}"
+        );
+        assert!(e.to_string().contains("another branch"));
+    }
+
+    #[test]
+    fn a_point_without_pose_is_named() {
+        // A 10 mm ring on a 25–35 mm work, tilted 20° on a 5 mm lead, runs out of reach.
+        let e = Table::build(&lobe(5.0), &linkage(10.0, 20.0, 5.0), 1e-4).unwrap_err();
+        let TableError::Linkage { source, .. } = &e else {
+            panic!("{e}")
+        };
+        assert!(matches!(source, LinkageError::OutOfReach { .. }), "{e}");
+        assert!(e.to_string().contains("profile point ("), "{e}");
+    }
+}

@@ -16,10 +16,13 @@
 //!
 //! Accepted: `N` (first word only), comments `( )` (not nested) and `;` (to the end of
 //! the line), lines holding only `%`, G0 G1 G7 G8 G17 G18 G20 G21 G61 G64 (with P, Q)
-//! G90 G91 G92 G93 G94, M2 M3 M5 M30, S, F and the axis words X Y Z C; letters in either
-//! case, spaces and tabs between words and between a letter and its number. A Y word
-//! parses, but a program that moves Y is refused by [`to_program`]: the whirling
+//! G90 G91 G92 G92.1 G93 G94, M2 M3 M5 M30, S, F and the axis words X Y Z C; letters in
+//! either case, spaces and tabs between words and between a letter and its number. A Y
+//! word parses, but a program that moves Y is refused by [`to_program`]: the whirling
 //! machine has no Y. Lines after M2/M30 are ignored, as LinuxCNC ignores them.
+//!
+//! G92.1 takes no axis words: as in LinuxCNC and grbl, axis words on its line are a
+//! move in the current motion mode, made after the offset is cancelled.
 
 use std::fmt;
 
@@ -59,6 +62,8 @@ pub enum GCode {
     Incremental,
     /// G92: rename the current position.
     SetPosition,
+    /// G92.1: cancel the G92 offsets (the controller's unrebased positions again).
+    ClearOffset,
     /// G93: inverse-time feed.
     InverseTime,
     /// G94: units-per-minute feed.
@@ -66,7 +71,7 @@ pub enum GCode {
 }
 
 /// Groups of codes of which a line may hold at most one (RS274/NGC modal groups, with
-/// G92 in the non-modal group that also claims the axis words).
+/// G92 and G92.1 in the non-modal group; of the two, only G92 claims the axis words).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Group {
     Motion,
@@ -82,7 +87,7 @@ enum Group {
 }
 
 impl GCode {
-    const ALL: [GCode; 15] = [
+    const ALL: [GCode; 16] = [
         GCode::Rapid,
         GCode::Linear,
         GCode::DiameterMode,
@@ -96,28 +101,30 @@ impl GCode {
         GCode::Absolute,
         GCode::Incremental,
         GCode::SetPosition,
+        GCode::ClearOffset,
         GCode::InverseTime,
         GCode::UnitsPerMinute,
     ];
 
-    /// The code's number (G1 → 1).
-    pub fn number(self) -> u32 {
+    /// The code's number in tenths, so that G92.1 has one too (G1 → 10, G92.1 → 921).
+    pub fn tenths(self) -> u32 {
         match self {
             GCode::Rapid => 0,
-            GCode::Linear => 1,
-            GCode::DiameterMode => 7,
-            GCode::RadiusMode => 8,
-            GCode::PlaneXy => 17,
-            GCode::PlaneXz => 18,
-            GCode::Inch => 20,
-            GCode::Millimetre => 21,
-            GCode::ExactPath => 61,
-            GCode::Blending => 64,
-            GCode::Absolute => 90,
-            GCode::Incremental => 91,
-            GCode::SetPosition => 92,
-            GCode::InverseTime => 93,
-            GCode::UnitsPerMinute => 94,
+            GCode::Linear => 10,
+            GCode::DiameterMode => 70,
+            GCode::RadiusMode => 80,
+            GCode::PlaneXy => 170,
+            GCode::PlaneXz => 180,
+            GCode::Inch => 200,
+            GCode::Millimetre => 210,
+            GCode::ExactPath => 610,
+            GCode::Blending => 640,
+            GCode::Absolute => 900,
+            GCode::Incremental => 910,
+            GCode::SetPosition => 920,
+            GCode::ClearOffset => 921,
+            GCode::InverseTime => 930,
+            GCode::UnitsPerMinute => 940,
         }
     }
 
@@ -129,7 +136,7 @@ impl GCode {
             GCode::Inch | GCode::Millimetre => Group::Units,
             GCode::ExactPath | GCode::Blending => Group::PathControl,
             GCode::Absolute | GCode::Incremental => Group::Distance,
-            GCode::SetPosition => Group::NonModal,
+            GCode::SetPosition | GCode::ClearOffset => Group::NonModal,
             GCode::InverseTime | GCode::UnitsPerMinute => Group::FeedMode,
         }
     }
@@ -137,7 +144,11 @@ impl GCode {
 
 impl fmt::Display for GCode {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "G{}", self.number())
+        let tenths = self.tenths();
+        match tenths % 10 {
+            0 => write!(f, "G{}", tenths / 10),
+            decimal => write!(f, "G{}.{decimal}", tenths / 10),
+        }
     }
 }
 
@@ -466,11 +477,7 @@ fn word_kind(letter: char, raw: &str) -> Result<WordKind, ParseErrorKind> {
         }
         'G' => WordKind::G(
             code()
-                .and_then(|t| {
-                    GCode::ALL
-                        .into_iter()
-                        .find(|g| u64::from(g.number()) * 10 == t)
-                })
+                .and_then(|t| GCode::ALL.into_iter().find(|g| u64::from(g.tenths()) == t))
                 .ok_or_else(unsupported)?,
         ),
         'M' => WordKind::M(
@@ -554,15 +561,19 @@ struct State {
     feed: Option<f64>,
     rpm: Option<f64>,
     spindle_on: bool,
-    /// Controller position: X radius mm, Z mm, C degrees.
+    /// Controller position: X radius mm, Z mm, C degrees (in the G92-renamed frame).
     position: [Option<f64>; 3],
+    /// The G92 offset of C: unrebased C minus the controller's C. Zero at the start (no
+    /// offset is taken to be active then, as [`Program::steps`] takes it), unknown after
+    /// G92 renames a C whose position is unknown.
+    c_offset: Option<f64>,
 }
 
 /// Builds the program a controller would run from `lines`, starting in the modes the
 /// writers' preamble sets and grbl starts in (G21 G90 G94, no motion mode) and with X
 /// read as a diameter when `x_diameter` (until G7/G8 says otherwise). Positions are
 /// absolute mm (X a radius) and degrees, in the controller's C frame (G92 C becomes
-/// [`Block::RebaseC`]); see the module docs.
+/// [`Block::RebaseC`], G92.1 [`Block::ClearRebase`]); see the module docs.
 pub fn to_program(lines: &[ParsedLine], x_diameter: bool) -> Result<Program, ParseError> {
     let mut state = State {
         inch: false,
@@ -574,6 +585,7 @@ pub fn to_program(lines: &[ParsedLine], x_diameter: bool) -> Result<Program, Par
         rpm: None,
         spindle_on: false,
         position: [None; 3],
+        c_offset: Some(0.0),
     };
     let mut program = Program::default();
     for line in lines {
@@ -688,6 +700,17 @@ fn run_line(
         })
         .collect();
 
+    // G92.1 (never on a line with G92, its modal group): cancel the offset, so the
+    // controller's C is the unrebased one; axis words on the line are a move after it.
+    if has_g(GCode::ClearOffset).is_some() {
+        state.position[2] = match (state.position[2], state.c_offset) {
+            (Some(c), Some(offset)) => Some(c + offset),
+            _ => None,
+        };
+        state.c_offset = Some(0.0);
+        blocks.push(Block::ClearRebase);
+    }
+
     // G92: rename the current position; C only, and never incremental.
     if let Some(g92) = has_g(GCode::SetPosition) {
         if axis_words.is_empty() {
@@ -696,6 +719,10 @@ fn run_line(
         for word in &axis_words {
             match word.kind {
                 WordKind::C(c) => {
+                    state.c_offset = match (state.position[2], state.c_offset) {
+                        (Some(old), Some(offset)) => Some(old + offset - c),
+                        _ => None,
+                    };
                     state.position[2] = Some(c);
                     blocks.push(Block::RebaseC { c });
                 }
@@ -849,7 +876,17 @@ mod tests {
         assert_eq!(line.comments, vec!["a; b".to_owned(), "rest".to_owned()]);
         assert!(parse_line(" % ", 1).unwrap().percent);
         assert!(parse_line("G64 P0.001 Q0", 1).is_ok());
-        assert!(parse_line("G92.1", 1).is_err());
+        // G92.1 is supported, in either case and with a trailing zero.
+        for text in ["G92.1", "g92.1", "G92.10"] {
+            let line = parse_line(text, 1).unwrap();
+            assert_eq!(
+                line.words[0].kind,
+                WordKind::G(GCode::ClearOffset),
+                "{text}"
+            );
+        }
+        assert_eq!(GCode::ClearOffset.to_string(), "G92.1");
+        assert_eq!(GCode::SetPosition.to_string(), "G92");
         assert_eq!(
             parse_line("G00", 1).unwrap().words[0].kind,
             WordKind::G(GCode::Rapid)
@@ -931,6 +968,57 @@ G0 X99
     }
 
     #[test]
+    fn g92_1_clears_the_offset_and_c_reads_unrebased() {
+        // C10 renamed as 0 (an offset of 10), a relative move to 5, G92.1: the controller
+        // reads 15, so the relative C5 goes to 20, and a G93 move without C stays at 20.
+        // G92.1 with axis words clears, then moves them in the current motion mode.
+        let text = "\
+G0 X1 Z0 C10
+G92 C0
+G91 G0 C5
+G92.1
+G0 C5
+G90 G93 G1 Z1 F10
+G92.1 G0 C0
+";
+        let program = read_program(text, false).unwrap();
+        let c = |c: f64| Block::Rapid {
+            x: None,
+            z: None,
+            c: Some(c),
+        };
+        let expected = vec![
+            Block::Rapid {
+                x: Some(1.0),
+                z: Some(0.0),
+                c: Some(10.0),
+            },
+            Block::RebaseC { c: 0.0 },
+            c(5.0),
+            Block::ClearRebase,
+            c(20.0),
+            Block::Linked {
+                x: 1.0,
+                z: 1.0,
+                c: 20.0,
+                minutes: 0.1,
+            },
+            Block::ClearRebase,
+            c(0.0),
+        ];
+        assert_eq!(program.blocks, expected);
+        // The continuous frame agrees: 10, then +5, then +5, then back to 0.
+        let continuous: Vec<Option<f64>> = program
+            .steps(crate::gcode::program::Pose::UNKNOWN)
+            .map(|s| s.to.c)
+            .collect();
+        assert_eq!(
+            continuous,
+            [10.0, 10.0, 15.0, 15.0, 20.0, 20.0, 20.0, 0.0].map(Some)
+        );
+    }
+
+    #[test]
     fn modal_motion_and_incremental_moves() {
         let program = read_program("G0 X1 Z2 C3\nX4\nG91 Z1\nC-1\n", false).unwrap();
         let targets: Vec<_> = program.blocks.iter().map(|b| b.target().unwrap()).collect();
@@ -953,7 +1041,16 @@ G0 X99
         assert_eq!(kind_at("/G0 X1"), (1, 1, UnexpectedCharacter('/')));
         assert_eq!(kind_at("G0 X1\r"), (1, 6, UnexpectedCharacter('\r')));
         assert_eq!(kind_at("G2 X1"), (1, 1, UnsupportedCode("G2".into())));
-        assert_eq!(kind_at("G92.1"), (1, 1, UnsupportedCode("G92.1".into())));
+        assert_eq!(kind_at("G92.2"), (1, 1, UnsupportedCode("G92.2".into())));
+        assert_eq!(
+            kind_at("G0 X0 G92.3"),
+            (1, 7, UnsupportedCode("G92.3".into()))
+        );
+        // G92 and G92.1 share the non-modal group.
+        assert_eq!(
+            kind_at("G92 G92.1 C0"),
+            (1, 5, ModalConflict("G92".into(), "G92.1".into()))
+        );
         assert_eq!(kind_at("G-1"), (1, 1, UnsupportedCode("G-1".into())));
         assert_eq!(kind_at("M4 S100"), (1, 1, UnsupportedCode("M4".into())));
         assert_eq!(kind_at("N1.5 G0 X1"), (1, 1, BadLineNumber("N1.5".into())));
@@ -992,6 +1089,13 @@ G0 X99
         assert_eq!(kind_at("G21\nX1"), (2, 1, NoMotionMode));
         assert_eq!(kind_at("G92"), (1, 1, G92WithoutAxis));
         assert_eq!(kind_at("G92 X0"), (1, 5, G92OnLinearAxis('X')));
+        // G92.1 takes no axis words: they are a move, which needs a motion mode.
+        assert_eq!(kind_at("G92.1 C0"), (1, 7, NoMotionMode));
+        // After renaming an unknown C, G92.1 leaves C unknown.
+        assert_eq!(
+            kind_at("G92 C30\nG92.1\nG91 G0 C1"),
+            (3, 8, UnknownPosition(Axis::C))
+        );
         assert_eq!(kind_at("G0 Y1"), (1, 4, YAxis));
         assert_eq!(
             kind_at("G0 X1 Z1 C1\nG93 G1 X2"),

@@ -10,7 +10,9 @@
 //!   (grbl) forget the units-per-minute feed;
 //! - axis words left out when their *written text* did not change, so the position the
 //!   controller holds is exactly what was last written; a move whose words all equal
-//!   the written position produces no line (the controller would not move either);
+//!   the written position produces no line (the controller would not move either).
+//!   After `G92.1` the controller's C is one the writer never wrote, so the next C word
+//!   is always written;
 //! - `G0`/`G1` on every motion line (no reliance on the modal motion code);
 //! - feed rates rounded down, so rounding never makes a move faster than planned.
 //!
@@ -49,7 +51,7 @@ impl Dialect {
 }
 
 /// The shortest line limit a writer accepts: every fixed line (preamble, spindle,
-/// G92) fits, and a comment still carries a useful amount of text per line.
+/// G92, G92.1) fits, and a comment still carries a useful amount of text per line.
 pub const MIN_LINE_LENGTH: usize = 32;
 
 /// Significant digits of every F word, rounded down: the written feed is below the
@@ -420,6 +422,12 @@ impl Writer<'_> {
                 self.written[2] = Some(text);
                 self.block_line(index, format!("G92 {word}"))?;
             }
+            Block::ClearRebase => {
+                // The controller's C becomes the unrebased position, whose text was never
+                // written: the next C word must be written whatever it reads.
+                self.written[2] = None;
+                self.block_line(index, "G92.1".to_owned())?;
+            }
             Block::SpindleOn { rpm } => {
                 if !(rpm.is_finite() && rpm > 0.0) {
                     return Err(invalid(
@@ -567,6 +575,109 @@ M2
 %
 ";
         assert_eq!(write(&sample(), &linuxcnc()).unwrap(), expected);
+    }
+
+    /// Two turns, a rebase, a turn, the retract and the clear, as `path::build` ends a
+    /// rebased program. The linked move after G92 is written in the rebased frame.
+    fn rebased_and_cleared() -> Program {
+        Program {
+            blocks: vec![
+                Block::Rapid {
+                    x: Some(12.0),
+                    z: Some(0.0),
+                    c: Some(0.0),
+                },
+                Block::SpindleOn { rpm: 3000.0 },
+                Block::Feed {
+                    x: Some(10.0),
+                    z: None,
+                    c: None,
+                    feed: 100.0,
+                },
+                Block::Linked {
+                    x: 10.0,
+                    z: 4.0,
+                    c: 720.0,
+                    minutes: 0.02,
+                },
+                Block::RebaseC { c: 0.0 },
+                Block::Linked {
+                    x: 10.0,
+                    z: 6.0,
+                    c: 360.0,
+                    minutes: 0.01,
+                },
+                Block::Rapid {
+                    x: Some(12.0),
+                    z: None,
+                    c: None,
+                },
+                Block::SpindleOff,
+                Block::ClearRebase,
+            ],
+        }
+    }
+
+    #[test]
+    fn rebase_and_clear_snapshots() {
+        let grbl_text = "\
+G21 G90 G94
+G0 X12 Z0 C0
+M3 S3000
+G1 X10 F100
+G93 G1 Z4 C720 F50
+G92 C0
+G1 Z6 C360 F100
+G0 X12
+M5
+G92.1
+G94
+M2
+";
+        assert_eq!(write(&rebased_and_cleared(), &grbl()).unwrap(), grbl_text);
+        let linuxcnc_text = "\
+%
+G21 G90 G94 G7
+G64 P0.001 Q0
+G0 X24 Z0 C0
+M3 S3000
+G1 X20 F100
+G93 G1 Z4 C720 F50
+G92 C0
+G1 Z6 C360 F100
+G0 X24
+M5
+G92.1
+G94
+M2
+%
+";
+        assert_eq!(
+            write(&rebased_and_cleared(), &linuxcnc()).unwrap(),
+            linuxcnc_text
+        );
+    }
+
+    #[test]
+    fn clear_rebase_round_trips_and_c_is_written_after_it() {
+        // After G92.1 the controller holds the unrebased C (1080 here), so a move to C0 in
+        // the unrebased frame must write C0 although C0 was the last C text written.
+        let mut program = rebased_and_cleared();
+        program.blocks.pop();
+        program.blocks.extend([
+            Block::ClearRebase,
+            Block::Rapid {
+                x: None,
+                z: None,
+                c: Some(0.0),
+            },
+        ]);
+        for settings in [grbl(), linuxcnc()] {
+            let text = write(&program, &settings).unwrap();
+            assert!(text.contains("\nG92.1\nG0 C0\n"), "{text}");
+            let read = read_program(&text, settings.x_diameter).unwrap();
+            assert_eq!(read, program);
+        }
     }
 
     #[test]
@@ -988,6 +1099,7 @@ M2
             (coord(), coord(), -5000.0..5000.0f64, 1e-4..10.0f64)
                 .prop_map(|(x, z, c, minutes)| Block::Linked { x, z, c, minutes }),
             (-720.0..720.0f64).prop_map(|c| Block::RebaseC { c }),
+            Just(Block::ClearRebase),
             (100.0..9000.0f64).prop_map(|rpm| Block::SpindleOn { rpm }),
             Just(Block::SpindleOff),
         ]
@@ -1069,19 +1181,42 @@ M2
                 let unit = 0.5 * 10f64.powi(-(d as i32));
                 if axis == Axis::X && settings.x_diameter { unit / 2.0 } else { unit }
             };
+            // G92 and G92.1 as the controller applies them: `offset` is the unrebased C
+            // minus the controller's C (none at the start; unknown after renaming an
+            // unknown C), and G92.1 makes the controller's C the unrebased one.
+            let rename = |position: &mut [Option<f64>; 3], offset: &mut Option<f64>, c: f64| {
+                *offset = match (position[2], *offset) {
+                    (Some(p), Some(o)) => Some(p + o - c),
+                    _ => None,
+                };
+                position[2] = Some(c);
+            };
+            let clear = |position: &mut [Option<f64>; 3], offset: &mut Option<f64>| {
+                position[2] = match (position[2], *offset) {
+                    (Some(p), Some(o)) => Some(p + o),
+                    _ => None,
+                };
+                *offset = Some(0.0);
+            };
             let mut expected: Vec<[Option<f64>; 3]> = Vec::new();
             let mut expected_times: Vec<f64> = Vec::new();
-            let mut raw = [None; 3];
             let mut rounded = [None; 3];
+            let mut offset = Some(0.0);
             for block in &program.blocks {
                 let targets: [Option<f64>; 3] = match (block.target(), block) {
                     (Some(t), _) => [t.x, t.z, t.c],
-                    (None, Block::RebaseC { c }) => [None, None, Some(*c)],
+                    (None, Block::RebaseC { c }) => {
+                        rename(&mut rounded, &mut offset, round(Axis::C, *c));
+                        [None; 3]
+                    }
+                    (None, Block::ClearRebase) => {
+                        clear(&mut rounded, &mut offset);
+                        [None; 3]
+                    }
                     _ => continue,
                 };
                 for (slot, axis) in Axis::ALL.into_iter().enumerate() {
                     if let Some(v) = targets[slot] {
-                        raw[slot] = Some(v);
                         rounded[slot] = Some(round(axis, v));
                         prop_assert!((round(axis, v) - v).abs() <= half(axis) * (1.0 + 1e-9));
                     }
@@ -1096,10 +1231,18 @@ M2
             let mut actual: Vec<[Option<f64>; 3]> = Vec::new();
             let mut actual_times: Vec<f64> = Vec::new();
             let mut position = [None; 3];
+            let mut offset = Some(0.0);
             for block in &read.blocks {
                 let targets: [Option<f64>; 3] = match (block.target(), block) {
                     (Some(t), _) => [t.x, t.z, t.c],
-                    (None, Block::RebaseC { c }) => [None, None, Some(*c)],
+                    (None, Block::RebaseC { c }) => {
+                        rename(&mut position, &mut offset, *c);
+                        [None; 3]
+                    }
+                    (None, Block::ClearRebase) => {
+                        clear(&mut position, &mut offset);
+                        [None; 3]
+                    }
                     _ => continue,
                 };
                 for slot in 0..3 {
@@ -1120,6 +1263,9 @@ M2
                 prop_assert!(*read_minutes >= *planned * (1.0 - 1e-12));
                 prop_assert!((read_minutes - planned) / planned < 1e-4);
             }
+            // Every G92.1 survives.
+            let clears = |p: &Program| p.blocks.iter().filter(|b| **b == Block::ClearRebase).count();
+            prop_assert_eq!(clears(&read), clears(&program));
             // Comments and spindle blocks survive in order.
             let others = |p: &Program| -> Vec<Block> {
                 p.blocks.iter().filter(|b| matches!(b, Block::SpindleOn { .. } | Block::SpindleOff)).cloned().collect()

@@ -7,9 +7,10 @@
 //! many decimals) is the writer's business ([`super::post`]).
 //!
 //! C may be renamed mid-program ([`Block::RebaseC`], G92) so that controllers holding
-//! coordinates as 32-bit floats keep their precision. Consumers that need one continuous
-//! frame (a limit checker, a simulator, a cycle-time estimate) walk the program with
-//! [`Program::steps`], which undoes the renaming.
+//! coordinates as 32-bit floats keep their precision, and the renaming cancelled again
+//! ([`Block::ClearRebase`], G92.1) so that a program leaves no offset behind. Consumers
+//! that need one continuous frame (a limit checker, a simulator, a cycle-time estimate)
+//! walk the program with [`Program::steps`], which undoes the renaming.
 
 use std::fmt;
 
@@ -97,6 +98,15 @@ pub enum Block {
         /// The name the current C position gets, degrees.
         c: f64,
     },
+    /// `G92.1`: cancel the G92 offset, so that C reads the controller's unrebased position
+    /// again and the next program starts in the frame this one started in.
+    ///
+    /// The machine does not move. Targets after it are in the unrebased frame (the
+    /// continuous frame of [`Program::steps`]); a [`Block::RebaseC`] after it starts a new
+    /// offset from there. G92.1 cancels the G92 offsets of every axis, X and Z included,
+    /// which the program never renames; the model assumes none is active when the program
+    /// starts. (LinuxCNC also zeroes the stored offset parameters #5211–#5219.)
+    ClearRebase,
     /// Whirling-ring spindle on (`M3 S<rpm>`).
     SpindleOn {
         /// Ring speed, revolutions per minute.
@@ -115,6 +125,7 @@ impl Block {
             Block::Linked { x, z, c, .. } => Some(Pose::known(x, z, c)),
             Block::Comment(_)
             | Block::RebaseC { .. }
+            | Block::ClearRebase
             | Block::SpindleOn { .. }
             | Block::SpindleOff => None,
         }
@@ -173,16 +184,23 @@ impl Program {
     /// one continuous frame: the controller's frame at program start, with every
     /// [`Block::RebaseC`] undone (so C keeps counting whole turns across G92).
     ///
+    /// The controller is taken to have no G92 offset active when the program starts, so
+    /// the continuous frame is its unrebased frame: after a [`Block::ClearRebase`] the
+    /// controller's C equals the continuous C, and later targets are read as they are.
+    ///
     /// `start` is where the machine is when the program starts ([`Pose::UNKNOWN`] when
     /// that is not known: an axis then becomes known at the first block that positions
     /// it). If C is unknown when a block renames it, the continuous frame is anchored at
     /// that renaming (C takes the new name's value there); speeds and turn counts, all a
-    /// rotary axis needs, stay right.
+    /// rotary axis needs, stay right. Such an anchored frame has no known relation to the
+    /// unrebased one, so a [`Block::ClearRebase`] after it makes C unknown again (its step
+    /// ends with C `None`) until a block positions C.
     pub fn steps(&self, start: Pose) -> Steps<'_> {
         Steps {
             blocks: self.blocks.iter().enumerate(),
             position: start,
             c_offset: 0.0,
+            c_anchored: false,
         }
     }
 }
@@ -197,7 +215,8 @@ pub struct Step<'a> {
     /// Position before the block, in the unrebased frame.
     pub from: Pose,
     /// Position after the block, in the unrebased frame (equal to `from` for blocks that
-    /// do not move).
+    /// do not move, except that a [`Block::ClearRebase`] can make C unknown; see
+    /// [`Program::steps`]).
     pub to: Pose,
 }
 
@@ -208,6 +227,9 @@ pub struct Steps<'a> {
     position: Pose,
     /// Unrebased C minus the controller's C.
     c_offset: f64,
+    /// The continuous frame was anchored at a renaming of an unknown C, so it is not the
+    /// controller's unrebased frame.
+    c_anchored: bool,
 }
 
 impl<'a> Iterator for Steps<'a> {
@@ -232,7 +254,16 @@ impl<'a> Iterator for Steps<'a> {
                 None => {
                     self.c_offset = 0.0;
                     self.position.c = Some(c);
+                    self.c_anchored = true;
                 }
+            }
+        } else if let Block::ClearRebase = *block {
+            // The controller's C is the unrebased C again: the continuous C, unless the
+            // frame was anchored at a renaming, when it is not known.
+            self.c_offset = 0.0;
+            if self.c_anchored {
+                self.c_anchored = false;
+                self.position.c = None;
             }
         }
         Some(Step {
@@ -341,5 +372,112 @@ mod tests {
         assert_eq!(Block::RebaseC { c: 1.0 }.target(), None);
         assert_eq!(Block::Comment("x".into()).target(), None);
         assert_eq!(Block::SpindleOn { rpm: 1.0 }.target(), None);
+        assert_eq!(Block::ClearRebase.target(), None);
+    }
+
+    #[test]
+    fn steps_stay_continuous_across_rebase_then_clear() {
+        // 720° renamed as 0°, a turn to 360° (1080° unrebased), G92.1: the controller reads
+        // 1080° again, so C1170 is a quarter turn on. A second G92 after the clear renames
+        // 1170° as 90°, and C180 is another quarter turn.
+        let program = Program {
+            blocks: vec![
+                Block::Rapid {
+                    x: Some(10.0),
+                    z: Some(0.0),
+                    c: Some(0.0),
+                },
+                Block::Linked {
+                    x: 10.0,
+                    z: 2.0,
+                    c: 720.0,
+                    minutes: 0.1,
+                },
+                Block::RebaseC { c: 0.0 },
+                Block::Linked {
+                    x: 10.0,
+                    z: 3.0,
+                    c: 360.0,
+                    minutes: 0.05,
+                },
+                Block::ClearRebase,
+                Block::Linked {
+                    x: 10.0,
+                    z: 3.25,
+                    c: 1170.0,
+                    minutes: 0.0125,
+                },
+                Block::Rapid {
+                    x: Some(12.0),
+                    z: None,
+                    c: None,
+                },
+                Block::RebaseC { c: 90.0 },
+                Block::Rapid {
+                    x: None,
+                    z: None,
+                    c: Some(180.0),
+                },
+            ],
+        };
+        let steps: Vec<Step<'_>> = program.steps(Pose::UNKNOWN).collect();
+        let c: Vec<(Option<f64>, Option<f64>)> = steps.iter().map(|s| (s.from.c, s.to.c)).collect();
+        assert_eq!(
+            c,
+            vec![
+                (None, Some(0.0)),
+                (Some(0.0), Some(720.0)),
+                (Some(720.0), Some(720.0)),
+                (Some(720.0), Some(1080.0)),
+                (Some(1080.0), Some(1080.0)),
+                (Some(1080.0), Some(1170.0)),
+                (Some(1170.0), Some(1170.0)),
+                (Some(1170.0), Some(1170.0)),
+                (Some(1170.0), Some(1260.0)),
+            ]
+        );
+        // The clear moves nothing.
+        assert_eq!(steps[4].from, steps[4].to);
+        assert_eq!(steps[4].to, Pose::known(10.0, 3.0, 1080.0));
+        assert_eq!(steps[6].to, Pose::known(12.0, 3.25, 1170.0));
+    }
+
+    #[test]
+    fn clearing_an_anchored_frame_makes_c_unknown() {
+        // C was never positioned before G92 C30: the frame is anchored there, and after
+        // G92.1 the controller reads a C the program never learned.
+        let program = Program {
+            blocks: vec![
+                Block::RebaseC { c: 30.0 },
+                Block::Rapid {
+                    x: None,
+                    z: None,
+                    c: Some(40.0),
+                },
+                Block::ClearRebase,
+                Block::Rapid {
+                    x: None,
+                    z: None,
+                    c: Some(500.0),
+                },
+                Block::Rapid {
+                    x: None,
+                    z: None,
+                    c: Some(510.0),
+                },
+            ],
+        };
+        let to: Vec<Option<f64>> = program.steps(Pose::UNKNOWN).map(|s| s.to.c).collect();
+        assert_eq!(
+            to,
+            vec![Some(30.0), Some(40.0), None, Some(500.0), Some(510.0)]
+        );
+        // A clear with nothing renamed changes nothing.
+        let plain = Program {
+            blocks: vec![Block::ClearRebase],
+        };
+        let start = Pose::known(1.0, 2.0, 3.0);
+        let step = plain.steps(start).next().unwrap();
+        assert_eq!((step.from, step.to), (start, start));
     }
 }
