@@ -229,3 +229,58 @@ fn a_program_past_the_machine_travel_is_refused_naming_the_axis() {
     let msg = refused(&job, Some(&machine));
     assert!(msg.contains("Z") && msg.contains("-5"), "{msg}");
 }
+
+#[test]
+fn a_program_faster_than_an_axis_can_move_is_refused_naming_the_block() {
+    let dir = tempfile::tempdir().unwrap();
+    // At 150 rpm the lobe's X swings 8 mm in a quarter of a workpiece turn (0.1 s): about
+    // 4800 mm/min, beyond the simulator's 3000 mm/min. The ring speed goes up too, so the
+    // insert cusp stays small and the limit, not the budget, is what refuses it.
+    let job = edited(dir.path(), "double-start", |t| {
+        t.replace("workpiece_rpm = 10.0", "workpiece_rpm = 150.0")
+            .replace("ring_rpm = 1500.0", "ring_rpm = 12000.0")
+    });
+    let msg = refused(&job, None);
+    assert!(
+        msg.contains("X speed") && msg.contains("max_rate 3000"),
+        "{msg}"
+    );
+    assert!(msg.contains("block "), "{msg}");
+}
+
+#[test]
+fn a_linuxcnc_plan_blends_within_its_share_and_writes_diameters() {
+    let dir = tempfile::tempdir().unwrap();
+    let (out, report) = (dir.path().join("p.ngc"), dir.path().join("r.json"));
+    let machine = util::root().join("machine-profiles/linuxcnc-lathe.toml");
+    let run = plan(
+        &util::example("double-start"),
+        &out,
+        &report,
+        Some(&machine),
+    );
+    assert!(run.ok, "{}", run.stderr);
+    let text = std::fs::read_to_string(&out).unwrap();
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let blend = r["blend_mm"].as_f64().unwrap();
+    assert!(blend > 0.0 && blend <= r["delta_mm"].as_f64().unwrap() / 5.0);
+    assert!(
+        text.lines()
+            .any(|l| l.starts_with("G64 P") && l.ends_with("Q0")),
+        "G64 P… Q0"
+    );
+    assert!(text.starts_with("%\n") && text.trim_end().ends_with('%'));
+    // Internal whirling plunges to X = R − (ρ + r) at most: written as a diameter, above R.
+    let first_plunge = text.lines().find(|l| l.starts_with("G1 X")).unwrap();
+    let x: f64 = first_plunge[4..]
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(
+        x > 2.0 * (60.0 - 34.0 - 1.2) && x < 2.0 * 60.0,
+        "{first_plunge}"
+    );
+}
