@@ -73,6 +73,7 @@ pub mod path;
 pub mod plan;
 pub mod profile;
 pub mod segment;
+pub mod sweep;
 pub mod table;
 
 /// Shapes shared by the unit tests.
