@@ -64,6 +64,7 @@
 
 pub mod brent;
 pub mod budget;
+pub mod check;
 pub mod gcode;
 pub mod interference;
 pub mod job;
@@ -73,6 +74,7 @@ pub mod path;
 pub mod plan;
 pub mod profile;
 pub mod segment;
+pub mod svg;
 pub mod sweep;
 pub mod table;
 

@@ -33,8 +33,65 @@ enum Command {
         /// Where to write the report (JSON).
         #[arg(long)]
         report: Option<PathBuf>,
+        /// Also measure the planned program with the swept-volume engine; refuse it (and write
+        /// nothing) if the measured error exceeds Δ.
+        #[arg(long)]
+        verify: bool,
+    },
+    /// Machined sections of tools swept along helices (the swept-volume engine).
+    Sweep {
+        #[command(subcommand)]
+        tool: SweepTool,
+    },
+    /// Measure a program's profile error against a job's groove with the swept-volume engine.
+    /// Exits 0 within Δ, 2 beyond it (the report is written either way), 1 on errors.
+    Verify {
+        /// The program (G-code).
+        program: PathBuf,
+        /// The job whose groove the program should cut.
+        #[arg(long)]
+        job: PathBuf,
+        /// Machine profile the program was written for; default: the built-in simulator's.
+        #[arg(long)]
+        machine: Option<PathBuf>,
+        /// Where to write the report (JSON).
+        #[arg(long)]
+        report: PathBuf,
+        /// Where to draw the axial section, target against machined (SVG).
+        #[arg(long)]
+        svg: Option<PathBuf>,
     },
 }
+
+#[derive(Subcommand)]
+enum SweepTool {
+    /// Seed 000: a circular paraboloid end mill (y − y0 = a·r² + b, upper half) on a helix of
+    /// radius R and pitch p; writes the upper boundary of the section in the plane through the
+    /// helix axis, around x = −R, as CSV `x,y`.
+    Paraboloid {
+        /// a, 1/mm (negative).
+        #[arg(long, allow_hyphen_values = true)]
+        a: f64,
+        /// b, mm (positive).
+        #[arg(long)]
+        b: f64,
+        /// Helix radius R, mm.
+        #[arg(long)]
+        radius: f64,
+        /// Helix pitch p, mm (0: a circular path).
+        #[arg(long)]
+        pitch: f64,
+        /// Largest distance of the written polyline from the true boundary, mm.
+        #[arg(long, default_value_t = 1e-4)]
+        accuracy: f64,
+        /// Where to write the CSV.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+}
+
+/// Exit code of `whirl verify` for a program measured beyond Δ.
+const BEYOND_DELTA: u8 = 2;
 
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
@@ -44,7 +101,7 @@ fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     match run(Cli::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
@@ -52,18 +109,36 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(cli: Cli) -> Result<()> {
+fn run(cli: Cli) -> Result<ExitCode> {
     match cli.command {
         Command::Plan {
             job,
             machine,
             output,
             report,
+            verify,
         } => {
             let machine = load_machine(machine.as_deref())?;
             let job = Job::load(&job)?;
-            let plan = whirl::plan::plan(&job, &machine)
+            let mut plan = whirl::plan::plan(&job, &machine)
                 .with_context(|| format!("cannot plan {}", job_name(&job)))?;
+            if verify {
+                let v = whirl::check::verify(&job, &machine, &plan.text, false)
+                    .context("cannot verify the planned program")?;
+                if !v.within_delta {
+                    anyhow::bail!(
+                        "the planned program measures {:.5} mm overcut, {:.5} mm undercut: beyond Δ = {} mm",
+                        v.max_overcut_mm,
+                        v.max_undercut_mm,
+                        v.delta_mm
+                    );
+                }
+                println!(
+                    "verified: max overcut {:.5} mm, max undercut {:.5} mm over {} points (Δ {} mm)",
+                    v.max_overcut_mm, v.max_undercut_mm, v.points, v.delta_mm
+                );
+                plan.report.verify = Some(v);
+            }
             let json = serde_json::to_string_pretty(&plan.report)?;
             // Everything is computed; only now is anything written.
             write_all(&[(Some(&output), &plan.text), (report.as_deref(), &json)])?;
@@ -81,7 +156,60 @@ fn run(cli: Cli) -> Result<()> {
                 r.cusp_mm,
                 r.cycle_time_s
             );
-            Ok(())
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Sweep {
+            tool:
+                SweepTool::Paraboloid {
+                    a,
+                    b,
+                    radius,
+                    pitch,
+                    accuracy,
+                    output,
+                },
+        } => {
+            let csv = whirl::sweep::section::run_paraboloid(a, b, radius, pitch, accuracy)?;
+            write_all(&[(Some(&output), &csv)])?;
+            println!(
+                "{}: {} points within {accuracy} mm of the section",
+                output.display(),
+                csv.lines().count() - 1
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Verify {
+            program,
+            job,
+            machine,
+            report,
+            svg,
+        } => {
+            let machine = load_machine(machine.as_deref())?;
+            let job = Job::load(&job)?;
+            let text = std::fs::read_to_string(&program)
+                .with_context(|| format!("cannot read {}", program.display()))?;
+            let v = whirl::check::verify(&job, &machine, &text, svg.is_some())
+                .with_context(|| format!("cannot verify {}", program.display()))?;
+            let json = serde_json::to_string_pretty(&v)?;
+            write_all(&[
+                (Some(&report), &json),
+                (svg.as_deref(), &v.svg.clone().unwrap_or_default()),
+            ])?;
+            println!(
+                "{}: max overcut {:.5} mm, max undercut {:.5} mm over {} points; Δ {} mm: {}",
+                program.display(),
+                v.max_overcut_mm,
+                v.max_undercut_mm,
+                v.points,
+                v.delta_mm,
+                if v.within_delta { "within" } else { "BEYOND" }
+            );
+            Ok(if v.within_delta {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::from(BEYOND_DELTA)
+            })
         }
     }
 }

@@ -72,6 +72,9 @@ pub struct Report {
     pub c_rebases: usize,
     /// Lines of program text.
     pub lines: usize,
+    /// The swept-volume engine's measurement of the program (`whirl plan --verify`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub verify: Option<crate::check::Verification>,
 }
 
 /// Why a job cannot be planned.
@@ -206,7 +209,7 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
     let blend = machine
         .blend_tolerance_mm
         .map_or(0.0, |b| b.min(delta / 5.0));
-    let scallop = budget::scallop(&table, &linkage, feed);
+    let scallop = crate::sweep::scallop::ring(&table, &linkage, feed);
     let cusp = budget::cusp(
         &table,
         &linkage,
@@ -279,6 +282,7 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
             .filter(|b| matches!(b, crate::gcode::program::Block::RebaseC { .. }))
             .count(),
         lines: text.lines().count(),
+        verify: None,
     };
     Ok(Plan {
         program: path.program,

@@ -138,8 +138,9 @@ impl Revolved for BallEnd {
     }
 
     fn span_at(&self, rho: f64) -> Option<(f64, f64)> {
+        // r − √(r² − ρ²), written so it keeps its digits for small ρ.
         let r = self.radius;
-        (rho <= r).then(|| (r - (r * r - rho * rho).sqrt(), f64::INFINITY))
+        (rho <= r).then(|| (rho * rho / (r + (r * r - rho * rho).sqrt()), f64::INFINITY))
     }
 
     fn max_radius(&self) -> f64 {
@@ -180,8 +181,9 @@ impl Revolved for CornerRadius {
         if rho <= f {
             Some((0.0, f64::INFINITY))
         } else if rho <= f + c {
-            let d = rho - f;
-            Some((c - (c * c - d * d).sqrt(), f64::INFINITY))
+            // c − √(c² − d²) with its digits kept; d may round to just above c at the rim.
+            let d = (rho - f).min(c);
+            Some((d * d / (c + (c * c - d * d).sqrt()), f64::INFINITY))
         } else {
             None
         }
@@ -228,35 +230,63 @@ mod tests {
     fn boundary_agrees(tool: &dyn Revolved, probes: &[f64]) {
         for &rho in probes {
             let Some((lo, hi)) = tool.span_at(rho) else {
-                assert!(tool.signed_distance(rho, 0.0) > 0.0 || tool.signed_distance(rho, 0.0).abs() < 1e-9);
+                assert!(
+                    tool.signed_distance(rho, 0.0) > 0.0
+                        || tool.signed_distance(rho, 0.0).abs() < 1e-9
+                );
                 continue;
             };
             for h in [lo, hi].into_iter().filter(|h| h.is_finite()) {
                 assert!(tool.signed_distance(rho, h).abs() < 1e-9, "ρ {rho} h {h}");
             }
             if hi > lo + 1e-6 {
-                let mid = if hi.is_finite() { (lo + hi) / 2.0 } else { lo + 1e-3 };
+                let mid = if hi.is_finite() {
+                    (lo + hi) / 2.0
+                } else {
+                    lo + 1e-3
+                };
                 assert!(tool.signed_distance(rho, mid) < 0.0, "inside at ρ {rho}");
             }
-            assert!(tool.signed_distance(rho, lo - 1e-3) > 0.0, "outside below at ρ {rho}");
+            assert!(
+                tool.signed_distance(rho, lo - 1e-3) > 0.0,
+                "outside below at ρ {rho}"
+            );
         }
     }
 
     #[test]
     fn spans_and_distances_describe_the_same_solids() {
         let probes = [0.0, 0.3, 1.0, 2.0, 2.9, 3.5, 5.0, 11.9];
-        boundary_agrees(&Torus { ring: 3.0, nose: 1.0 }, &probes);
+        boundary_agrees(
+            &Torus {
+                ring: 3.0,
+                nose: 1.0,
+            },
+            &probes,
+        );
         boundary_agrees(&Paraboloid { a: -0.05, b: 7.2 }, &probes);
         boundary_agrees(&BallEnd { radius: 3.0 }, &probes);
-        boundary_agrees(&CornerRadius { flat: 2.0, corner: 1.0 }, &probes);
+        boundary_agrees(
+            &CornerRadius {
+                flat: 2.0,
+                corner: 1.0,
+            },
+            &probes,
+        );
         boundary_agrees(&FlatEnd { radius: 3.0 }, &probes);
     }
 
     #[test]
     fn the_seed_000_paraboloid_is_12_mm_in_radius_and_distances_are_exact_on_its_axis() {
         let p = Paraboloid { a: -0.05, b: 7.2 };
-        assert!((p.base_radius() - 12.0).abs() < 1e-12, "a·ρ² + b = 0 at ρ = 12");
-        assert!((p.signed_distance(0.0, 10.0) - 2.8).abs() < 1e-12, "2.8 above the tip");
+        assert!(
+            (p.base_radius() - 12.0).abs() < 1e-12,
+            "a·ρ² + b = 0 at ρ = 12"
+        );
+        assert!(
+            (p.signed_distance(0.0, 10.0) - 2.8).abs() < 1e-12,
+            "2.8 above the tip"
+        );
         // The parabola's curvature at the tip is 2|a| = 0.1: radius 10. From its focus-side
         // axis point h = b − 1 the nearest boundary is the tip, 1 away.
         assert!((p.signed_distance(0.0, 6.2) + 1.0).abs() < 1e-12);

@@ -4,3 +4,4 @@ mod cli;
 mod linkage;
 mod sweep;
 mod util;
+mod verify;

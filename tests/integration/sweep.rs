@@ -17,6 +17,7 @@ use whirl::job::Job;
 use whirl::linkage::Whirling;
 use whirl::machine::MachineProfile;
 use whirl::profile::Profile;
+use whirl::sweep::verify::{Motion, Target};
 
 /// The ring at one executed pose, with the trigonometry of C done once.
 #[derive(Clone, Copy)]
@@ -97,10 +98,12 @@ fn pose_at(path: &[[f64; 3]], s: f64) -> Pose {
     }
 }
 
-/// Largest overcut (as a positive number) and undercut over the sampled target points.
+/// Largest overcut (as a positive number) and undercut over the sampled target points, and
+/// every point's error with where it is: (profile parameter, start, z, error).
 struct Measured {
     overcut: f64,
     undercut: f64,
+    points: Vec<(f64, u32, f64, f64)>,
 }
 
 fn measure(job: &Job, profile: &Profile, installation_deg: f64, program: &Program) -> Measured {
@@ -124,13 +127,13 @@ fn measure(job: &Job, profile: &Profile, installation_deg: f64, program: &Progra
     let mut m = Measured {
         overcut: 0.0,
         undercut: 0.0,
+        points: Vec::new(),
     };
     let us = 40;
     let phases = 6;
     for iu in 0..us {
-        let pos: DVec2 = profile
-            .point(profile.length() * (iu as f64 + 0.5) / us as f64)
-            .pos;
+        let u = profile.length() * (iu as f64 + 0.5) / us as f64;
+        let pos: DVec2 = profile.point(u).pos;
         for start in 0..job.groove.starts {
             for k in 0..phases {
                 // Axial positions spread over one feed spacing: the scallop's crest is among them.
@@ -154,6 +157,7 @@ fn measure(job: &Job, profile: &Profile, installation_deg: f64, program: &Progra
                 }
                 m.overcut = m.overcut.max(-best);
                 m.undercut = m.undercut.max(best);
+                m.points.push((u, start, z, best));
             }
         }
     }
@@ -209,6 +213,31 @@ fn assert_within_delta(name: &str) {
         "{name}: undercut {} > Δ {delta}",
         m.undercut
     );
+    engine_agrees(&job, &profile, &program, &m);
+}
+
+/// `whirl verify`'s engine measures the same error at the same points as the brute force.
+fn engine_agrees(job: &Job, profile: &Profile, program: &Program, brute: &Measured) {
+    let linkage = whirl::linkage::Linkage {
+        p: job.p(),
+        ring: job.ring(profile),
+    };
+    let z_range = (job.groove.z_start, job.groove.z_start + job.groove.length);
+    let target = Target::new(
+        profile,
+        linkage,
+        job.groove.starts,
+        z_range,
+        job.cut.axial_feed,
+    )
+    .unwrap();
+    let motion = Motion::new(program).unwrap();
+    let mut worst: f64 = 0.0;
+    for &(u, start, z, e) in &brute.points {
+        let v = target.error_at_u(&motion, u, start, z);
+        worst = worst.max((v - e).abs());
+    }
+    assert!(worst < 1e-6, "engine and brute force differ by {worst} mm");
 }
 
 #[test]
@@ -246,6 +275,7 @@ fn the_brute_force_sees_a_coarse_program() {
     }
     let coarse = Program { blocks };
     let m = measure(&job, &profile, delta_deg, &coarse);
+    engine_agrees(&job, &profile, &coarse, &m);
     assert!(
         m.overcut.max(m.undercut) > job.cut.delta,
         "a program with spans twice as long must leave more than Δ: {} / {}",

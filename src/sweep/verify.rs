@@ -1,0 +1,534 @@
+//! The profile error of a program against its target groove (kinematics.md, "Error").
+//!
+//! At a target surface point Q the error is the signed distance from Q to the swept tool:
+//! the smallest, over every pose the controller passes through, of (distance from Q to the
+//! tip circle − r). Negative is overcut, positive undercut. The motion is the program as a
+//! controller executes it: every move a straight line in X, Z and C.
+//!
+//! Searching every pose for every point would take minutes on a long groove, so the search is
+//! seeded. By screw invariance the pose that touches profile point P(u′) turned by θ is the
+//! linkage pose of u′ screwed by θ; the poses that come closest to the surface point
+//! Q = S(u, θ) are those of the profile positions u′ near u (its own, and its neighbours':
+//! near a sharp edge those sit several feeds away in Z). For every such seed the smallest gap
+//! is searched on the executed motion itself, over ±[`SEARCH_WINDOW_DEG`] of C around where the
+//! motion passes it, in that revolution and the ones either side. Moves that do not turn C
+//! (plunges, retracts) are searched whole. A program off by far more than Δ still shows as an
+//! error: it may be reported smaller than it is when its poses leave the windows, never within
+//! Δ when it is not.
+//!
+//! The target is sampled over every start and the whole formed length, at axial steps of
+//! 8/7 of the feed per revolution: the steps walk through every phase of the feed scallop.
+
+use crate::gcode::program::{Block, Pose as GPose, Program};
+use crate::linkage::{surface_normal, turn, Linkage, Torus};
+use crate::profile::Profile;
+use crate::svg::{Plot, Series};
+use crate::table::Table;
+use glam::{DVec2, DVec3};
+use serde::Serialize;
+use std::f64::consts::TAU;
+
+/// Half-width of the window searched around each seeded turn, degrees.
+pub const SEARCH_WINDOW_DEG: f64 = 6.0;
+/// Profile positions within this distance of a measured point seed its search, mm.
+const SEED_REACH: f64 = 1.0;
+/// Profile positions sampled per period.
+const PROFILE_SAMPLES: usize = 64;
+
+/// What is measured: the groove and the ring, with the seeds of the search.
+#[derive(Debug, Clone)]
+pub struct Target<'a> {
+    profile: &'a Profile,
+    linkage: Linkage,
+    starts: u32,
+    z_range: (f64, f64),
+    feed: f64,
+    seeds: Vec<Seed>,
+}
+
+/// One measured point.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PointError {
+    /// The target point, workpiece frame, mm.
+    pub at: [f64; 3],
+    /// Its profile point (transverse plane, θ = 0), mm.
+    pub profile_point: [f64; 2],
+    /// Which start (0-based).
+    pub start: u32,
+    /// Signed error, mm: negative overcut, positive undercut.
+    pub error_mm: f64,
+}
+
+/// The result over the whole groove.
+#[derive(Debug, Clone, Serialize)]
+pub struct Measurement {
+    /// Largest overcut, mm (≥ 0).
+    pub max_overcut_mm: f64,
+    /// Largest undercut, mm (≥ 0).
+    pub max_undercut_mm: f64,
+    /// Where the largest overcut is.
+    pub worst_overcut: PointError,
+    /// Where the largest undercut is.
+    pub worst_undercut: PointError,
+    /// Target points measured.
+    pub points: usize,
+}
+
+/// Why a program cannot be measured.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum VerifyError {
+    /// No move turns the workpiece.
+    #[error("the program never turns C, so it cannot have cut a helical groove")]
+    NoTurning,
+    /// C turns both ways.
+    #[error(
+        "C turns both ways (block {block}); verify measures programs whose workpiece turns \
+         one way, as every whirling program does"
+    )]
+    CNotMonotonic {
+        /// Block index where the direction changes.
+        block: usize,
+    },
+    /// Z goes back and forth while C turns.
+    #[error(
+        "Z moves both ways while C turns; verify measures programs that feed along the groove \
+         one way, as every whirling program does"
+    )]
+    ZNotMonotonic,
+    /// A move from an unknown position.
+    #[error("block {block} moves before every axis has been positioned")]
+    Unpositioned {
+        /// Block index.
+        block: usize,
+    },
+    /// The linkage has no table for the groove (so no seeds to search from).
+    #[error("the ring's poses for this groove cannot be found, so there is nothing to search from: {why}")]
+    Seed {
+        /// Why.
+        why: String,
+    },
+}
+
+/// A straight move of the executed motion: X, Z in mm, C in radians, at both ends.
+#[derive(Debug, Clone, Copy)]
+struct Move {
+    from: [f64; 3],
+    to: [f64; 3],
+}
+
+impl Move {
+    fn at(&self, t: f64) -> [f64; 3] {
+        std::array::from_fn(|k| self.from[k] + t * (self.to[k] - self.from[k]))
+    }
+}
+
+/// The executed motion, split into moves that turn C (one way) and moves that do not.
+#[derive(Debug, Clone)]
+pub struct Motion {
+    /// Turning moves in order of C; `c_dir` tells which way C goes.
+    turning: Vec<Move>,
+    /// Moves at a fixed C.
+    still: Vec<Move>,
+    c_dir: f64,
+}
+
+impl Motion {
+    /// The motion a controller executes for `program`, from the first fully known position.
+    pub fn new(program: &Program) -> Result<Motion, VerifyError> {
+        let mut turning = Vec::new();
+        let mut still = Vec::new();
+        let mut c_dir = 0.0;
+        for step in program.steps(GPose::UNKNOWN) {
+            if !matches!(
+                step.block,
+                Block::Rapid { .. } | Block::Feed { .. } | Block::Linked { .. }
+            ) {
+                continue;
+            }
+            let (Some(fx), Some(fz), Some(fc)) = (step.from.x, step.from.z, step.from.c) else {
+                // The first moves position the axes from an unknown start: nothing cuts before
+                // the machine's position is known to the program, by the program's own design.
+                if step.to.x.is_some() && step.to.z.is_some() && step.to.c.is_some() {
+                    continue;
+                }
+                if !turning.is_empty() || !still.is_empty() {
+                    return Err(VerifyError::Unpositioned { block: step.index });
+                }
+                continue;
+            };
+            let (Some(tx), Some(tz), Some(tc)) = (step.to.x, step.to.z, step.to.c) else {
+                return Err(VerifyError::Unpositioned { block: step.index });
+            };
+            let m = Move {
+                from: [fx, fz, fc.to_radians()],
+                to: [tx, tz, tc.to_radians()],
+            };
+            let dc = m.to[2] - m.from[2];
+            if dc == 0.0 {
+                still.push(m);
+                continue;
+            }
+            if c_dir == 0.0 {
+                c_dir = dc.signum();
+            } else if dc.signum() != c_dir {
+                return Err(VerifyError::CNotMonotonic { block: step.index });
+            }
+            turning.push(m);
+        }
+        if turning.is_empty() {
+            return Err(VerifyError::NoTurning);
+        }
+        let dz: Vec<f64> = turning.iter().map(|m| m.to[1] - m.from[1]).collect();
+        if dz.iter().any(|d| *d > 0.0) && dz.iter().any(|d| *d < 0.0) {
+            return Err(VerifyError::ZNotMonotonic);
+        }
+        Ok(Motion {
+            turning,
+            still,
+            c_dir,
+        })
+    }
+
+    /// C range of the turning motion, (low, high).
+    fn c_range(&self) -> (f64, f64) {
+        let a = self.turning[0].from[2];
+        let b = self.turning[self.turning.len() - 1].to[2];
+        (a.min(b), a.max(b))
+    }
+
+    /// The pose (X, Z, C) where the turning motion passes C = `c` (clamped to its range).
+    fn at_c(&self, c: f64) -> [f64; 3] {
+        let key = |m: &Move| m.to[2] * self.c_dir;
+        let i = self
+            .turning
+            .partition_point(|m| key(m) < c * self.c_dir)
+            .min(self.turning.len() - 1);
+        let m = &self.turning[i];
+        let t = ((c - m.from[2]) / (m.to[2] - m.from[2])).clamp(0.0, 1.0);
+        m.at(t)
+    }
+
+    /// The C at which the turning motion's Z is nearest `z`: Z moves one way with C (checked
+    /// in [`Motion::new`]), so a binary search over the moves finds it.
+    fn c_at_z(&self, z: f64) -> f64 {
+        let first = &self.turning[0];
+        let z_dir = (self.turning[self.turning.len() - 1].to[1] - first.from[1]).signum();
+        let i = self
+            .turning
+            .partition_point(|m| (m.to[1] - z) * z_dir < 0.0)
+            .min(self.turning.len() - 1);
+        let m = &self.turning[i];
+        let dz = m.to[1] - m.from[1];
+        let t = if dz == 0.0 {
+            0.0
+        } else {
+            ((z - m.from[1]) / dz).clamp(0.0, 1.0)
+        };
+        m.at(t)[2]
+    }
+}
+
+fn gap(torus: &mut Torus, q: DVec3, pose: [f64; 3]) -> f64 {
+    torus.centre = DVec3::new(pose[0], 0.0, pose[1]);
+    torus.gap(turn(q, pose[2]))
+}
+
+/// The smallest gap from `q` to the ring along `pose(s)` for s in [a, b]: a scan, then golden
+/// section around the best scan point.
+fn min_along(mut f: impl FnMut(f64) -> f64, a: f64, b: f64, scan: usize) -> f64 {
+    let step = (b - a) / scan as f64;
+    let (mut best_s, mut best) = (a, f64::INFINITY);
+    for k in 0..=scan {
+        let s = a + step * k as f64;
+        let v = f(s);
+        if v < best {
+            (best_s, best) = (s, v);
+        }
+    }
+    let (mut lo, mut hi) = ((best_s - step).max(a), (best_s + step).min(b));
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    for _ in 0..48 {
+        if f1 < f2 {
+            hi = x2;
+            (x2, f2) = (x1, f1);
+            x1 = hi - g * (hi - lo);
+            f1 = f(x1);
+        } else {
+            lo = x1;
+            (x1, f1) = (x2, f2);
+            x2 = lo + g * (hi - lo);
+            f2 = f(x2);
+        }
+    }
+    best.min(f1).min(f2)
+}
+
+/// A target point: the surface point of profile position `seed` turned by θ (plus its start's
+/// turn), at axial position z = p·θ.
+struct Probe {
+    q: DVec3,
+    /// θ plus the start's turn: what turns a seed's C into this point's.
+    turn: f64,
+    z: f64,
+}
+
+/// Where the linkage touches one profile position: the profile point, C and Z of its pose.
+#[derive(Debug, Clone, Copy)]
+struct Seed {
+    pos: DVec2,
+    c: f64,
+    z: f64,
+}
+
+impl<'a> Target<'a> {
+    /// The groove of `profile` (one period, `starts` starts, lead parameter and ring in
+    /// `linkage`) formed over `z_range`, cut at `feed` mm per workpiece revolution (which sets
+    /// the axial sampling). Every sample of the linkage table becomes a seed: the table is
+    /// dense where X(ψ) bends, so a sharp edge's fan of normals is well covered.
+    pub fn new(
+        profile: &'a Profile,
+        linkage: Linkage,
+        starts: u32,
+        z_range: (f64, f64),
+        feed: f64,
+    ) -> Result<Target<'a>, VerifyError> {
+        let table = Table::build(profile, &linkage, 1e-4)
+            .map_err(|e| VerifyError::Seed { why: e.to_string() })?;
+        let seeds = table
+            .samples
+            .iter()
+            .map(|s| Seed {
+                pos: s.pos,
+                c: s.contact.pose.c,
+                z: s.contact.pose.z,
+            })
+            .collect();
+        Ok(Target {
+            profile,
+            linkage,
+            starts,
+            z_range,
+            feed,
+            seeds,
+        })
+    }
+
+    /// The surface point of profile point `pos`, start `start`, at axial position `z`.
+    fn probe(&self, pos: DVec2, start: u32, z: f64) -> Probe {
+        let start_turn = TAU / f64::from(self.starts) * f64::from(start);
+        let theta = z / self.linkage.p;
+        let base = DVec2::from_angle(start_turn).rotate(pos);
+        Probe {
+            q: turn(DVec3::new(base.x, base.y, 0.0), theta) + DVec3::Z * z,
+            turn: theta + start_turn,
+            z,
+        }
+    }
+
+    /// Axial positions measured: steps of 8/7 of the feed over the formed length.
+    fn z_samples(&self) -> Vec<f64> {
+        let step = self.feed * 8.0 / 7.0;
+        let (a, b) = self.z_range;
+        let n = ((b - a) / step).floor().max(0.0) as usize;
+        (0..=n).map(|k| a + step * k as f64).collect()
+    }
+
+    /// Measure `motion` over the whole groove.
+    pub fn measure(&self, motion: &Motion) -> Result<Measurement, VerifyError> {
+        let seeds = &self.seeds;
+        let zs = self.z_samples();
+        let positions: Vec<DVec2> = (0..PROFILE_SAMPLES)
+            .map(|k| {
+                let u = self.profile.length() * (k as f64 + 0.5) / PROFILE_SAMPLES as f64;
+                self.profile.point(u).pos
+            })
+            .collect();
+        let jobs: Vec<(usize, u32)> = (0..positions.len())
+            .flat_map(|k| (0..self.starts).map(move |s| (k, s)))
+            .collect();
+        let threads = std::thread::available_parallelism()
+            .map_or(1, |n| n.get())
+            .min(8);
+        let chunk = jobs.len().div_ceil(threads).max(1);
+        let results: Vec<Vec<PointError>> = std::thread::scope(|scope| {
+            let handles: Vec<_> = jobs
+                .chunks(chunk)
+                .map(|part| {
+                    let (zs, positions) = (&zs, &positions);
+                    scope.spawn(move || {
+                        let mut out = Vec::with_capacity(part.len() * zs.len());
+                        for &(k, start) in part {
+                            let near = near_seeds(seeds, positions[k]);
+                            for &z in zs {
+                                let probe = self.probe(positions[k], start, z);
+                                out.push(PointError {
+                                    at: probe.q.to_array(),
+                                    profile_point: positions[k].to_array(),
+                                    start,
+                                    error_mm: self.error_at(&probe, &near, motion),
+                                });
+                            }
+                        }
+                        out
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().expect("a measuring thread panicked"))
+                .collect()
+        });
+        let all: Vec<PointError> = results.into_iter().flatten().collect();
+        summarise(&all)
+    }
+
+    /// The error at the surface point of profile parameter `u`, start `start` (0-based) and
+    /// axial position `z`.
+    pub fn error_at_u(&self, motion: &Motion, u: f64, start: u32, z: f64) -> f64 {
+        let pos = self.profile.point(u).pos;
+        self.error_at(
+            &self.probe(pos, start, z),
+            &near_seeds(&self.seeds, pos),
+            motion,
+        )
+    }
+
+    fn error_at(&self, probe: &Probe, seeds: &[Seed], motion: &Motion) -> f64 {
+        let mut torus = self.linkage.torus(&crate::linkage::Pose {
+            x: 0.0,
+            c: 0.0,
+            z: 0.0,
+        });
+        let (c_lo, c_hi) = motion.c_range();
+        let window = SEARCH_WINDOW_DEG.to_radians();
+        // Where the motion passes each seed, in its revolution and the ones either side;
+        // windows that overlap are searched once.
+        let mut centres: Vec<f64> = Vec::with_capacity(seeds.len() * 3);
+        for seed in seeds {
+            let seed_c = seed.c - probe.turn;
+            let c_near = motion.c_at_z(seed.z + probe.z);
+            let k0 = ((c_near - seed_c) / TAU).round();
+            for dk in [-1.0, 0.0, 1.0] {
+                centres.push(seed_c + TAU * (k0 + dk));
+            }
+        }
+        centres.sort_by(f64::total_cmp);
+        centres.dedup_by(|b, a| *b - *a < window / 2.0);
+        let mut best = f64::INFINITY;
+        for c_mid in centres {
+            let (a, b) = ((c_mid - window).max(c_lo), (c_mid + window).min(c_hi));
+            if a < b {
+                let v = min_along(|c| gap(&mut torus, probe.q, motion.at_c(c)), a, b, 24);
+                best = best.min(v);
+            }
+        }
+        let reach = self.linkage.ring.radius * self.linkage.ring.installation.sin()
+            + self.linkage.ring.nose
+            + 1.0;
+        for m in &motion.still {
+            let (z0, z1) = (m.from[1].min(m.to[1]), m.from[1].max(m.to[1]));
+            if probe.q.z < z0 - reach || probe.q.z > z1 + reach {
+                continue;
+            }
+            best = best.min(min_along(
+                |t| gap(&mut torus, probe.q, m.at(t)),
+                0.0,
+                1.0,
+                40,
+            ));
+        }
+        best
+    }
+}
+
+impl Target<'_> {
+    /// The axial section (polar angle 0) over one axial pitch centred on `z_centre`, within
+    /// the formed length: the target, and the machined section drawn as the target moved by
+    /// the measured error, magnified `magnify` times, along the surface normal (undercut
+    /// outwards, overcut in).
+    pub fn section_plot(&self, motion: &Motion, z_centre: f64, magnify: f64) -> Plot {
+        let p = self.linkage.p;
+        let period = TAU / f64::from(self.starts);
+        let (z_lo, z_hi) = self.z_range;
+        let pitch = (period * p.abs()).min(z_hi - z_lo);
+        let z_centre = z_centre.clamp(z_lo + pitch / 2.0, z_hi - pitch / 2.0);
+        let mut rows: Vec<(f64, f64, f64, f64)> = Vec::new(); // z, ρ, machined z, machined ρ
+        let n = 400;
+        for k in 0..n {
+            let point = self
+                .profile
+                .point(self.profile.length() * k as f64 / n as f64);
+            let near = near_seeds(&self.seeds, point.pos);
+            for start in 0..self.starts {
+                // The turn that brings this copy of the point to polar angle 0, nearest z_centre.
+                let phi = point.pos.to_angle() + period * f64::from(start);
+                let m = ((z_centre / p + phi) / TAU).round();
+                let theta = -phi + TAU * m;
+                let z = p * theta;
+                if (z - z_centre).abs() > pitch / 2.0 {
+                    continue;
+                }
+                let error = self.error_at(&self.probe(point.pos, start, z), &near, motion);
+                let normal = turn(
+                    surface_normal(point.pos, point.tangent, p),
+                    theta + phi - point.pos.to_angle(),
+                );
+                let axial = DVec2::new(normal.z, normal.x).normalize_or_zero();
+                let rho = point.pos.length();
+                let moved = DVec2::new(z, rho) + axial * error * magnify;
+                rows.push((z, rho, moved.x, moved.y));
+            }
+        }
+        rows.sort_by(|a, b| a.0.total_cmp(&b.0));
+        Plot {
+            title: format!("axial section at polar angle 0, error magnified {magnify}×"),
+            x_label: "z, mm".into(),
+            y_label: "radius, mm".into(),
+            series: vec![
+                Series {
+                    label: "target".into(),
+                    colour: "black",
+                    points: rows.iter().map(|r| (r.0, r.1)).collect(),
+                },
+                Series {
+                    label: format!("machined (error × {magnify})"),
+                    colour: "crimson",
+                    points: rows.iter().map(|r| (r.2, r.3)).collect(),
+                },
+            ],
+            equal_scale: true,
+        }
+    }
+}
+
+/// The seeds of the profile positions within [`SEED_REACH`] of `pos`.
+fn near_seeds(seeds: &[Seed], pos: DVec2) -> Vec<Seed> {
+    seeds
+        .iter()
+        .filter(|s| (s.pos - pos).length() <= SEED_REACH)
+        .copied()
+        .collect()
+}
+
+fn summarise(all: &[PointError]) -> Result<Measurement, VerifyError> {
+    let worst_over = all
+        .iter()
+        .min_by(|a, b| a.error_mm.total_cmp(&b.error_mm))
+        .copied();
+    let worst_under = all
+        .iter()
+        .max_by(|a, b| a.error_mm.total_cmp(&b.error_mm))
+        .copied();
+    let (Some(o), Some(u)) = (worst_over, worst_under) else {
+        return Err(VerifyError::NoTurning);
+    };
+    Ok(Measurement {
+        max_overcut_mm: (-o.error_mm).max(0.0),
+        max_undercut_mm: u.error_mm.max(0.0),
+        worst_overcut: o,
+        worst_undercut: u,
+        points: all.len(),
+    })
+}
