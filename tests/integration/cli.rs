@@ -284,3 +284,74 @@ fn a_linuxcnc_plan_blends_within_its_share_and_writes_diameters() {
         "{first_plunge}"
     );
 }
+
+#[test]
+fn sweep_paraboloid_writes_seed_000_s_section() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("section.csv");
+    let o = util::whirl(&[
+        OsStr::new("sweep"),
+        OsStr::new("paraboloid"),
+        OsStr::new("--a"),
+        OsStr::new("-0.05"),
+        OsStr::new("--b"),
+        OsStr::new("7.2"),
+        OsStr::new("--radius"),
+        OsStr::new("20"),
+        OsStr::new("--pitch"),
+        OsStr::new("20"),
+        OsStr::new("--accuracy"),
+        OsStr::new("0.0001"),
+        OsStr::new("-o"),
+        out.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("x,y"));
+    let pts: Vec<(f64, f64)> = lines
+        .map(|l| {
+            let (x, y) = l.split_once(',').unwrap();
+            (x.parse().unwrap(), y.parse().unwrap())
+        })
+        .collect();
+    // Seed 000: the section meets the axis where a(x + R)² = −b, at x = −32 and x = −8,
+    // and is ordered by x from one end to the other.
+    assert_eq!(pts.first().unwrap(), &(-32.0, 0.0));
+    assert_eq!(pts.last().unwrap(), &(-8.0, 0.0));
+    assert!(pts.windows(2).all(|w| w[0].0 < w[1].0));
+    // In the middle the boundary is the paper's Eq. 10.
+    let (a, b, r, p) = (-0.05f64, 7.2f64, 20.0f64, 20.0f64);
+    let eq10 = |x: f64| {
+        let s = p / (4.0 * std::f64::consts::PI * a * r * x);
+        a * x * x
+            + 2.0 * a * x * r * (1.0 - s * s).sqrt()
+            + a * r * r
+            + b
+            + p / (2.0 * std::f64::consts::PI) * s.asin()
+    };
+    for &(x, y) in pts.iter().filter(|(x, _)| (-30.0..=-10.0).contains(x)) {
+        assert!(
+            (y - eq10(x)).abs() < 1e-4,
+            "x {x}: {y} vs Eq. 10 {}",
+            eq10(x)
+        );
+    }
+    let bad = util::whirl(&[
+        OsStr::new("sweep"),
+        OsStr::new("paraboloid"),
+        OsStr::new("--a"),
+        OsStr::new("0.05"),
+        OsStr::new("--b"),
+        OsStr::new("7.2"),
+        OsStr::new("--radius"),
+        OsStr::new("20"),
+        OsStr::new("--pitch"),
+        OsStr::new("20"),
+        OsStr::new("-o"),
+        dir.path().join("bad.csv").as_os_str(),
+    ]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("must be negative"));
+    assert!(!dir.path().join("bad.csv").exists());
+}
