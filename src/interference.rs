@@ -6,6 +6,7 @@
 //! start included, for points inside the tool.
 
 use crate::linkage::{turn, Linkage};
+use crate::minimise::golden;
 use crate::profile::Profile;
 use crate::table::Table;
 use glam::{DVec2, DVec3};
@@ -136,7 +137,7 @@ fn deepest(
         window[2] = next();
         let [before, here, after] = window;
         if here <= near && here <= before && here <= after {
-            let refined = golden_min(&gap, at(i - 1), at(i + 1));
+            let refined = golden(&gap, at(i - 1), at(i + 1), 50);
             let (t, g) = if refined.1 < here {
                 refined
             } else {
@@ -149,31 +150,6 @@ fn deepest(
         window = [here, after, 0.0];
     }
     worst
-}
-
-/// Golden-section minimum of `f` on `[a, b]`.
-fn golden_min(f: &impl Fn(f64) -> f64, mut a: f64, mut b: f64) -> (f64, f64) {
-    let g = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut x1, mut x2) = (b - g * (b - a), a + g * (b - a));
-    let (mut f1, mut f2) = (f(x1), f(x2));
-    for _ in 0..50 {
-        if f1 < f2 {
-            b = x2;
-            (x2, f2) = (x1, f1);
-            x1 = b - g * (b - a);
-            f1 = f(x1);
-        } else {
-            a = x1;
-            (x1, f1) = (x2, f2);
-            x2 = a + g * (b - a);
-            f2 = f(x2);
-        }
-    }
-    if f1 < f2 {
-        (x1, f1)
-    } else {
-        (x2, f2)
-    }
 }
 
 #[cfg(test)]

@@ -31,7 +31,7 @@
 //! - [`profile`]: groove sections ([`profile::points`], [`profile::spline`],
 //!   [`profile::standard`]).
 //! - [`linkage`]: kinematics.md's node solver, one profile point → one pose; [`brent`] its
-//!   root finder.
+//!   root finder, [`minimise`] the 1D minimiser the sweeps use.
 //! - [`table`], [`interference`], [`budget`], [`segment`], [`path`]: the planner's steps.
 //! - [`gcode`]: the program model, writers and parser.
 //! - [`plan`]: all of the above in order, with the report.
@@ -70,6 +70,7 @@ pub mod interference;
 pub mod job;
 pub mod linkage;
 pub mod machine;
+pub mod minimise;
 pub mod path;
 pub mod plan;
 pub mod profile;

@@ -2,6 +2,7 @@
 //! leave between them, measured by sweeping the ring rather than estimated by a formula.
 
 use crate::linkage::{Linkage, Pose};
+use crate::minimise::{golden, scan_then_golden};
 use crate::table::Table;
 use glam::DVec3;
 use std::f64::consts::TAU;
@@ -42,43 +43,10 @@ pub fn ring(table: &Table, linkage: &Linkage, feed: f64) -> f64 {
                     };
                     linkage.gap(q, &pose)
                 };
-                minimise(gap, psi_u - 0.2, psi_u + 0.2, 24, 40)
+                scan_then_golden(gap, psi_u - 0.2, psi_u + 0.2, 24, 40)
             };
             let between = |tau: f64| pass(tau).min(pass(tau - spacing));
-            -minimise(|t| -between(t), spacing.min(0.0), spacing.max(0.0), 0, 32)
+            -golden(|t| -between(t), spacing.min(0.0), spacing.max(0.0), 32).1
         })
         .fold(0.0, f64::max)
-}
-
-/// Minimum of `f` over `[a, b]`: a scan of `scan` steps (0: none) to find the basin, then
-/// `steps` golden-section steps in it (each shrinks the bracket by 0.618).
-fn minimise(f: impl Fn(f64) -> f64, a: f64, b: f64, scan: usize, steps: usize) -> f64 {
-    let (mut lo, mut hi) = (a, b);
-    if scan > 0 {
-        let step = (b - a) / scan as f64;
-        let best = (0..=scan)
-            .map(|k| a + step * k as f64)
-            .map(|x| (x, f(x)))
-            .min_by(|x, y| x.1.total_cmp(&y.1))
-            .map_or(a, |(x, _)| x);
-        lo = (best - step).max(a);
-        hi = (best + step).min(b);
-    }
-    let g = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
-    let (mut f1, mut f2) = (f(x1), f(x2));
-    for _ in 0..steps {
-        if f1 < f2 {
-            hi = x2;
-            (x2, f2) = (x1, f1);
-            x1 = hi - g * (hi - lo);
-            f1 = f(x1);
-        } else {
-            lo = x1;
-            (x1, f1) = (x2, f2);
-            x2 = lo + g * (hi - lo);
-            f2 = f(x2);
-        }
-    }
-    f1.min(f2)
 }

@@ -21,6 +21,7 @@
 
 use crate::gcode::program::{Block, Pose as GPose, Program};
 use crate::linkage::{surface_normal, turn, Linkage, Torus};
+use crate::minimise::scan_then_golden;
 use crate::profile::Profile;
 use crate::svg::{Plot, Series};
 use crate::table::Table;
@@ -233,38 +234,6 @@ fn gap(torus: &mut Torus, q: DVec3, pose: [f64; 3]) -> f64 {
     torus.gap(turn(q, pose[2]))
 }
 
-/// The smallest gap from `q` to the ring along `pose(s)` for s in [a, b]: a scan, then golden
-/// section around the best scan point.
-fn min_along(mut f: impl FnMut(f64) -> f64, a: f64, b: f64, scan: usize) -> f64 {
-    let step = (b - a) / scan as f64;
-    let (mut best_s, mut best) = (a, f64::INFINITY);
-    for k in 0..=scan {
-        let s = a + step * k as f64;
-        let v = f(s);
-        if v < best {
-            (best_s, best) = (s, v);
-        }
-    }
-    let (mut lo, mut hi) = ((best_s - step).max(a), (best_s + step).min(b));
-    let g = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
-    let (mut f1, mut f2) = (f(x1), f(x2));
-    for _ in 0..48 {
-        if f1 < f2 {
-            hi = x2;
-            (x2, f2) = (x1, f1);
-            x1 = hi - g * (hi - lo);
-            f1 = f(x1);
-        } else {
-            lo = x1;
-            (x1, f1) = (x2, f2);
-            x2 = lo + g * (hi - lo);
-            f2 = f(x2);
-        }
-    }
-    best.min(f1).min(f2)
-}
-
 /// A target point: the surface point of profile position `seed` turned by θ (plus its start's
 /// turn), at axial position z = p·θ.
 struct Probe {
@@ -420,7 +389,8 @@ impl<'a> Target<'a> {
         for c_mid in centres {
             let (a, b) = ((c_mid - window).max(c_lo), (c_mid + window).min(c_hi));
             if a < b {
-                let v = min_along(|c| gap(&mut torus, probe.q, motion.at_c(c)), a, b, 24);
+                let v =
+                    scan_then_golden(|c| gap(&mut torus, probe.q, motion.at_c(c)), a, b, 24, 48);
                 best = best.min(v);
             }
         }
@@ -432,12 +402,8 @@ impl<'a> Target<'a> {
             if probe.q.z < z0 - reach || probe.q.z > z1 + reach {
                 continue;
             }
-            best = best.min(min_along(
-                |t| gap(&mut torus, probe.q, m.at(t)),
-                0.0,
-                1.0,
-                40,
-            ));
+            let along = |t| gap(&mut torus, probe.q, m.at(t));
+            best = best.min(scan_then_golden(along, 0.0, 1.0, 40, 48));
         }
         best
     }
