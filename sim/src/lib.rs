@@ -1,0 +1,1 @@
+//! whirl-sim: a simulated whirling-lathe controller.
