@@ -35,6 +35,7 @@
 //! - [`table`], [`interference`], [`budget`], [`segment`], [`path`]: the planner's steps.
 //! - [`gcode`]: the program model, writers and parser.
 //! - [`plan`]: all of the above in order, with the report.
+//! - [`exec_log`]: the executed-path log (JSON lines), its summary and plots.
 //!
 //! # Example
 //!
@@ -65,6 +66,7 @@
 pub mod brent;
 pub mod budget;
 pub mod check;
+pub mod exec_log;
 pub mod gcode;
 pub mod interference;
 pub mod job;

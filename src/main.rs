@@ -43,6 +43,11 @@ enum Command {
         #[command(subcommand)]
         tool: SweepTool,
     },
+    /// Read executed-path logs.
+    Log {
+        #[command(subcommand)]
+        command: LogCommand,
+    },
     /// Measure a program's profile error against a job's groove with the swept-volume engine.
     /// Exits 0 within Δ, 2 beyond it (the report is written either way), 1 on errors.
     Verify {
@@ -60,6 +65,23 @@ enum Command {
         /// Where to draw the axial section, target against machined (SVG).
         #[arg(long)]
         svg: Option<PathBuf>,
+    },
+}
+
+#[derive(Subcommand)]
+enum LogCommand {
+    /// Count what a run sent, acknowledged, refused and executed, and how it ended.
+    Summary {
+        /// The executed-path log (JSON lines).
+        log: PathBuf,
+    },
+    /// Draw X, Z and C over time from the status reports (SVG).
+    Plot {
+        /// The executed-path log (JSON lines).
+        log: PathBuf,
+        /// Where to write the SVG.
+        #[arg(short, long)]
+        output: PathBuf,
     },
 }
 
@@ -176,6 +198,21 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 output.display(),
                 csv.lines().count() - 1
             );
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Log { command } => {
+            match command {
+                LogCommand::Summary { log } => {
+                    let read = whirl::exec_log::read(&log)?;
+                    let s = whirl::exec_log::Summary::of(&read);
+                    println!("{}", serde_json::to_string_pretty(&s)?);
+                }
+                LogCommand::Plot { log, output } => {
+                    let read = whirl::exec_log::read(&log)?;
+                    let svg = whirl::svg::stack(&whirl::exec_log::axis_plots(&read));
+                    write_all(&[(Some(&output), &svg)])?;
+                }
+            }
             Ok(ExitCode::SUCCESS)
         }
         Command::Verify {

@@ -152,6 +152,24 @@ impl Plot {
     }
 }
 
+/// Several plots stacked top to bottom in one SVG document (each keeps its own axes).
+pub fn stack(plots: &[Plot]) -> String {
+    let mut out = format!(
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{}" viewBox="0 0 {WIDTH} {}">"#,
+        HEIGHT * plots.len() as f64,
+        HEIGHT * plots.len() as f64
+    );
+    out.push('\n');
+    for (i, plot) in plots.iter().enumerate() {
+        let inner = plot.to_svg();
+        // Nest each plot's document, moved down to its slot.
+        let moved = inner.replacen("<svg ", &format!(r#"<svg y="{}" "#, HEIGHT * i as f64), 1);
+        out.push_str(&moved);
+    }
+    out.push_str("</svg>\n");
+    out
+}
+
 /// About six round tick values covering [a, b].
 fn ticks(a: f64, b: f64) -> Vec<f64> {
     let raw = (b - a) / 6.0;
@@ -185,6 +203,21 @@ fn escape(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn stacked_plots_nest_one_document_each_in_its_slot() {
+        let one = Plot {
+            title: "t".into(),
+            x_label: "x".into(),
+            y_label: "y".into(),
+            series: vec![],
+            equal_scale: false,
+        };
+        let svg = stack(&[one.clone(), one]);
+        assert_eq!(svg.matches("<svg ").count(), 3);
+        assert!(svg.contains(&format!(r#"<svg y="{HEIGHT}""#)));
+        assert_eq!(svg.matches("</svg>").count(), 3);
+    }
 
     #[test]
     fn ticks_are_round_and_cover_the_range() {

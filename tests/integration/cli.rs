@@ -355,3 +355,57 @@ fn sweep_paraboloid_writes_seed_000_s_section() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("must be negative"));
     assert!(!dir.path().join("bad.csv").exists());
 }
+
+#[test]
+fn log_summary_and_plot_read_an_executed_path_log() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = util::write(
+        dir.path(),
+        "exec.jsonl",
+        concat!(
+            r#"{"t":0.0,"event":"start","program":"p.nc","lines":1,"transport":"serial"}"#,
+            "\n",
+            r#"{"t":0.1,"event":"sent","line":1,"text":"G1 X1 F100"}"#,
+            "\n",
+            r#"{"t":0.2,"event":"ack","line":1}"#,
+            "\n",
+            r#"{"t":0.4,"event":"status","state":"Run","pos":[0.5,0.0,0.0]}"#,
+            "\n",
+            r#"{"t":0.9,"event":"executed","line":1,"times":[0.2,0.8],"from":[0,0,0],"to":[1,0,0]}"#,
+            "\n",
+            r#"{"t":1.0,"event":"end","completed":true}"#,
+            "\n",
+        ),
+    );
+    let o = util::whirl(&[OsStr::new("log"), OsStr::new("summary"), log.as_os_str()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(
+        (
+            s["sent"].as_u64(),
+            s["acked"].as_u64(),
+            s["executed"].as_u64()
+        ),
+        (Some(1), Some(1), Some(1))
+    );
+    assert_eq!(s["completed"], true);
+    let svg = dir.path().join("p.svg");
+    let o = util::whirl(&[
+        OsStr::new("log"),
+        OsStr::new("plot"),
+        log.as_os_str(),
+        OsStr::new("-o"),
+        svg.as_os_str(),
+    ]);
+    assert!(o.status.success());
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert_eq!(text.matches("over time").count(), 3, "X, Z and C panels");
+    let bad = util::write(
+        dir.path(),
+        "bad.jsonl",
+        "{\"t\":0}\nnonsense\n{\"t\":1,\"event\":\"ack\",\"line\":1}\n",
+    );
+    let o = util::whirl(&[OsStr::new("log"), OsStr::new("summary"), bad.as_os_str()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("line 1"));
+}

@@ -1,0 +1,442 @@
+//! The executed-path log: what was sent, what the controller answered, where the machine was,
+//! and what it executed, as JSON lines, so that a run can be audited and replayed.
+//!
+//! One event per line, each written with a single `write` to a file opened for appending and
+//! never truncated: a crash loses at most the event being written, and a torn last line is
+//! reported, not fatal, when the log is read. Times are seconds since the run started. The
+//! format is the same for every transport.
+
+use crate::svg::{Plot, Series};
+use serde::{Deserialize, Serialize};
+use std::fs::{File, OpenOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// One logged event.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "event", rename_all = "snake_case")]
+pub enum Event {
+    /// A run begins.
+    Start {
+        /// The program file or job that was run.
+        program: String,
+        /// Its number of lines.
+        lines: usize,
+        /// How it was sent (serial, modbus-tcp, …).
+        transport: String,
+    },
+    /// A program line went out (1-based program line).
+    Sent {
+        /// Program line.
+        line: usize,
+        /// Its text.
+        text: String,
+    },
+    /// The controller accepted a line.
+    Ack {
+        /// Program line.
+        line: usize,
+    },
+    /// The controller refused a line.
+    Error {
+        /// Program line.
+        line: usize,
+        /// The controller's error code.
+        code: u32,
+        /// What it means.
+        message: String,
+    },
+    /// A status report.
+    Status {
+        /// Controller state (Idle, Run, Hold:0, Alarm, …).
+        state: String,
+        /// Machine position X, Z (mm) and C (degrees).
+        pos: [f64; 3],
+        /// Free planner blocks, if reported.
+        #[serde(skip_serializing_if = "Option::is_none", default)]
+        blocks_free: Option<u32>,
+        /// Free RX bytes, if reported.
+        #[serde(skip_serializing_if = "Option::is_none", default)]
+        rx_free: Option<u32>,
+        /// The line number being executed, if reported.
+        #[serde(skip_serializing_if = "Option::is_none", default)]
+        line: Option<u64>,
+    },
+    /// The controller raised an alarm.
+    Alarm {
+        /// Alarm code.
+        code: u32,
+        /// What it means.
+        message: String,
+    },
+    /// A message from the controller or the bridge.
+    Message {
+        /// The text.
+        text: String,
+    },
+    /// A straight move the controller executed (from its own execution record).
+    Executed {
+        /// Program line.
+        line: usize,
+        /// Start and end time, s.
+        times: [f64; 2],
+        /// X, Z (mm), C (degrees) at the start.
+        from: [f64; 3],
+        /// At the end.
+        to: [f64; 3],
+    },
+    /// The run ended.
+    End {
+        /// Whether every line was executed.
+        completed: bool,
+        /// Why it stopped, if it did not complete.
+        #[serde(skip_serializing_if = "Option::is_none", default)]
+        reason: Option<String>,
+    },
+}
+
+/// An event with its time.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Record {
+    /// Seconds since the run started.
+    pub t: f64,
+    /// What happened.
+    #[serde(flatten)]
+    pub event: Event,
+}
+
+/// Why a log could not be written or read.
+#[derive(Debug, thiserror::Error)]
+pub enum LogError {
+    /// The file could not be opened or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The log.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A line that is not an event (other than a torn last line).
+    #[error("{path} line {line}: not a log event: {source}")]
+    Parse {
+        /// The log.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// Why.
+        source: serde_json::Error,
+    },
+}
+
+/// An append-only log file.
+#[derive(Debug)]
+pub struct ExecLog {
+    file: File,
+    path: PathBuf,
+}
+
+impl ExecLog {
+    /// Open `path` for appending (created if missing; what is there is kept).
+    pub fn append(path: &Path) -> Result<ExecLog, LogError> {
+        let file = OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+            .map_err(|source| LogError::Io {
+                path: path.to_owned(),
+                source,
+            })?;
+        Ok(ExecLog {
+            file,
+            path: path.to_owned(),
+        })
+    }
+
+    /// Append one event: one line, written in one call and flushed to the OS.
+    pub fn write(&mut self, t: f64, event: Event) -> Result<(), LogError> {
+        let mut line =
+            serde_json::to_string(&Record { t, event }).expect("log events always serialise");
+        line.push('\n');
+        self.file
+            .write_all(line.as_bytes())
+            .and_then(|()| self.file.flush())
+            .map_err(|source| LogError::Io {
+                path: self.path.clone(),
+                source,
+            })
+    }
+}
+
+/// A log as read back: its records, and whether the last line was torn (a crash mid-write).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Read {
+    /// Every complete event, in order.
+    pub records: Vec<Record>,
+    /// The last line was incomplete and was left out.
+    pub torn_tail: bool,
+}
+
+/// Read a log. A last line without its newline that does not parse is a torn write and is
+/// left out; any other bad line is an error naming it.
+pub fn read(path: &Path) -> Result<Read, LogError> {
+    let text = std::fs::read_to_string(path).map_err(|source| LogError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    let ends_clean = text.is_empty() || text.ends_with('\n');
+    let lines: Vec<&str> = text.lines().collect();
+    let mut records = Vec::with_capacity(lines.len());
+    let mut torn_tail = false;
+    for (i, l) in lines.iter().enumerate() {
+        if l.trim().is_empty() {
+            continue;
+        }
+        match serde_json::from_str::<Record>(l) {
+            Ok(r) => records.push(r),
+            Err(_) if i + 1 == lines.len() && !ends_clean => torn_tail = true,
+            Err(source) => {
+                return Err(LogError::Parse {
+                    path: path.to_owned(),
+                    line: i + 1,
+                    source,
+                })
+            }
+        }
+    }
+    Ok(Read { records, torn_tail })
+}
+
+/// What `whirl log summary` prints.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Summary {
+    /// Runs in the log (Start events).
+    pub runs: usize,
+    /// Lines sent, acknowledged, refused.
+    pub sent: usize,
+    /// See `sent`.
+    pub acked: usize,
+    /// See `sent`.
+    pub errors: usize,
+    /// Alarms raised.
+    pub alarms: usize,
+    /// Moves the controller reported executing.
+    pub executed: usize,
+    /// Program lines executed more than once (a resumed run must have none).
+    pub executed_twice: Vec<usize>,
+    /// Seconds from the first to the last event.
+    pub duration_s: f64,
+    /// How the last run ended.
+    pub completed: Option<bool>,
+    /// The last line was torn.
+    pub torn_tail: bool,
+}
+
+impl Summary {
+    /// Summarise a log.
+    pub fn of(log: &Read) -> Summary {
+        let mut s = Summary {
+            runs: 0,
+            sent: 0,
+            acked: 0,
+            errors: 0,
+            alarms: 0,
+            executed: 0,
+            executed_twice: Vec::new(),
+            duration_s: 0.0,
+            completed: None,
+            torn_tail: log.torn_tail,
+        };
+        let mut seen = std::collections::BTreeMap::<usize, usize>::new();
+        for r in &log.records {
+            match &r.event {
+                Event::Start { .. } => s.runs += 1,
+                Event::Sent { .. } => s.sent += 1,
+                Event::Ack { .. } => s.acked += 1,
+                Event::Error { .. } => s.errors += 1,
+                Event::Alarm { .. } => s.alarms += 1,
+                Event::Executed { line, .. } => {
+                    s.executed += 1;
+                    *seen.entry(*line).or_default() += 1;
+                }
+                Event::End { completed, .. } => s.completed = Some(*completed),
+                Event::Status { .. } | Event::Message { .. } => {}
+            }
+        }
+        s.executed_twice = seen
+            .into_iter()
+            .filter(|(_, n)| *n > 1)
+            .map(|(l, _)| l)
+            .collect();
+        if let (Some(a), Some(b)) = (log.records.first(), log.records.last()) {
+            s.duration_s = b.t - a.t;
+        }
+        s
+    }
+}
+
+/// X, Z and C over time, from the status reports: one plot per axis.
+pub fn axis_plots(log: &Read) -> Vec<Plot> {
+    let names = [("X", "mm"), ("Z", "mm"), ("C", "degrees")];
+    let colours = ["steelblue", "darkgreen", "darkorange"];
+    (0..3)
+        .map(|k| Plot {
+            title: format!("{} over time", names[k].0),
+            x_label: "time, s".into(),
+            y_label: format!("{}, {}", names[k].0, names[k].1),
+            series: vec![Series {
+                label: names[k].0.into(),
+                colour: colours[k],
+                points: log
+                    .records
+                    .iter()
+                    .filter_map(|r| match &r.event {
+                        Event::Status { pos, .. } => Some((r.t, pos[k])),
+                        _ => None,
+                    })
+                    .collect(),
+            }],
+            equal_scale: false,
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> Vec<(f64, Event)> {
+        vec![
+            (
+                0.0,
+                Event::Start {
+                    program: "p.nc".into(),
+                    lines: 2,
+                    transport: "serial".into(),
+                },
+            ),
+            (
+                0.1,
+                Event::Sent {
+                    line: 1,
+                    text: "G1 X1 F100".into(),
+                },
+            ),
+            (0.2, Event::Ack { line: 1 }),
+            (
+                0.3,
+                Event::Status {
+                    state: "Run".into(),
+                    pos: [0.5, 0.0, 0.0],
+                    blocks_free: Some(34),
+                    rx_free: Some(1000),
+                    line: None,
+                },
+            ),
+            (
+                0.9,
+                Event::Executed {
+                    line: 1,
+                    times: [0.2, 0.8],
+                    from: [0.0; 3],
+                    to: [1.0, 0.0, 0.0],
+                },
+            ),
+            (
+                1.0,
+                Event::End {
+                    completed: true,
+                    reason: None,
+                },
+            ),
+        ]
+    }
+
+    #[test]
+    fn events_round_trip_one_per_line_and_appending_keeps_what_was_there() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("exec.jsonl");
+        for (t, e) in sample() {
+            ExecLog::append(&path).unwrap().write(t, e).unwrap();
+        }
+        let mut log = ExecLog::append(&path).unwrap();
+        log.write(
+            2.0,
+            Event::Message {
+                text: "again".into(),
+            },
+        )
+        .unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert_eq!(text.lines().count(), sample().len() + 1);
+        assert!(text.lines().all(|l| l.starts_with("{\"t\":")));
+        let read = read(&path).unwrap();
+        assert!(!read.torn_tail);
+        let back: Vec<(f64, Event)> = read.records.into_iter().map(|r| (r.t, r.event)).collect();
+        assert_eq!(&back[..sample().len()], &sample()[..]);
+    }
+
+    #[test]
+    fn a_torn_last_line_is_left_out_and_a_bad_middle_line_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("exec.jsonl");
+        let mut log = ExecLog::append(&path).unwrap();
+        for (t, e) in sample() {
+            log.write(t, e).unwrap();
+        }
+        let mut f = OpenOptions::new().append(true).open(&path).unwrap();
+        f.write_all(b"{\"t\":1.1,\"event\":\"ac").unwrap();
+        let r = read(&path).unwrap();
+        assert!(r.torn_tail);
+        assert_eq!(r.records.len(), sample().len());
+        std::fs::write(&path, "{\"t\":0,\"event\":\"ack\",\"line\":1}\nnot json\n{\"t\":1,\"event\":\"ack\",\"line\":2}\n").unwrap();
+        let e = read(&path).unwrap_err();
+        assert!(matches!(e, LogError::Parse { line: 2, .. }), "{e}");
+    }
+
+    #[test]
+    fn the_summary_counts_and_finds_lines_executed_twice() {
+        let mut records: Vec<Record> = sample()
+            .into_iter()
+            .map(|(t, event)| Record { t, event })
+            .collect();
+        let s = Summary::of(&Read {
+            records: records.clone(),
+            torn_tail: false,
+        });
+        assert_eq!(
+            (s.runs, s.sent, s.acked, s.errors, s.executed),
+            (1, 1, 1, 0, 1)
+        );
+        assert_eq!(s.completed, Some(true));
+        assert!((s.duration_s - 1.0).abs() < 1e-12);
+        assert!(s.executed_twice.is_empty());
+        records.push(Record {
+            t: 1.5,
+            event: Event::Executed {
+                line: 1,
+                times: [1.2, 1.4],
+                from: [0.0; 3],
+                to: [1.0, 0.0, 0.0],
+            },
+        });
+        let s = Summary::of(&Read {
+            records,
+            torn_tail: false,
+        });
+        assert_eq!(s.executed_twice, vec![1]);
+    }
+
+    #[test]
+    fn axis_plots_follow_the_status_reports() {
+        let read = Read {
+            records: sample()
+                .into_iter()
+                .map(|(t, event)| Record { t, event })
+                .collect(),
+            torn_tail: false,
+        };
+        let plots = axis_plots(&read);
+        assert_eq!(plots.len(), 3);
+        assert_eq!(plots[0].series[0].points, vec![(0.3, 0.5)]);
+    }
+}
