@@ -35,6 +35,8 @@
 //! - [`table`], [`interference`], [`budget`], [`segment`], [`path`]: the planner's steps.
 //! - [`gcode`]: the program model, writers and parser.
 //! - [`plan`]: all of the above in order, with the report.
+//! - [`protocol`]: sans-I/O controller protocols: grbl/grblHAL streaming by character
+//!   counting, controller responses, resume preambles.
 //! - [`exec_log`]: the executed-path log (JSON lines), its summary and plots.
 //!
 //! # Example
@@ -76,6 +78,7 @@ pub mod minimise;
 pub mod path;
 pub mod plan;
 pub mod profile;
+pub mod protocol;
 pub mod segment;
 pub mod svg;
 pub mod sweep;
