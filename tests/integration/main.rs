@@ -2,6 +2,7 @@
 
 mod cli;
 mod linkage;
+mod sim;
 mod sweep;
 mod util;
 mod verify;
