@@ -22,6 +22,7 @@
 //! - [`report`]: everything printed (banner, status report, `$$`, `$I`, …).
 //! - [`machine`]: what the controller knows of its machine (travel, rates, number type).
 //! - [`controller`]: the state machine tying them together.
+//! - [`serve`]: the controller served on a byte stream in simulated time (the only async part).
 //! - [`error`]: the numbered answers and the simulator's own errors.
 //!
 //! # Example
@@ -73,6 +74,7 @@ pub mod motion;
 pub mod protocol;
 pub mod record;
 pub mod report;
+pub mod serve;
 pub mod system;
 
 #[cfg(test)]

@@ -1,0 +1,166 @@
+//! The simulator's front-end: a controller served on a byte stream (a pseudo-terminal, a TCP
+//! connection, an in-memory pipe), in simulated time.
+//!
+//! Only bytes and time move here; every decision is the [`Controller`]'s. Each tick the
+//! simulated clock advances by the wall time elapsed times the time scale (or by a fixed step
+//! when the scale is "as fast as possible"), the bytes that arrived are handed over, no faster
+//! than the emulated baud rate allows in simulated time, and the controller's output is
+//! written back.
+
+use crate::{Controller, Event};
+use std::time::Duration;
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+
+/// How the simulated clock and the link behave.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ServeOptions {
+    /// Simulated seconds per wall second; `None`: as fast as the host allows (each tick
+    /// advances `fast_step` simulated seconds, without waiting).
+    pub time_scale: Option<f64>,
+    /// Simulated seconds per tick when running as fast as possible.
+    pub fast_step: f64,
+    /// Wall time between ticks when running scaled.
+    pub tick: Duration,
+    /// Emulated link rate, bits per second (10 bits a byte); `None`: unlimited.
+    pub baud: Option<u32>,
+}
+
+impl Default for ServeOptions {
+    fn default() -> Self {
+        ServeOptions {
+            time_scale: Some(1.0),
+            fast_step: 0.005,
+            tick: Duration::from_millis(2),
+            baud: None,
+        }
+    }
+}
+
+/// Serve `controller` on `stream` until the other side closes it (Ok) or the link fails.
+/// `on_event` sees every controller event (answers, executed blocks, alarms) as it happens.
+pub async fn serve<S: AsyncRead + AsyncWrite + Unpin>(
+    mut stream: S,
+    controller: &mut Controller,
+    options: ServeOptions,
+    mut on_event: impl FnMut(&Event),
+) -> std::io::Result<()> {
+    let mut inbox: Vec<u8> = Vec::new();
+    let mut buf = [0u8; 4096];
+    let mut budget = 0.0_f64; // bytes the link may still deliver
+    let banner = controller.take_output();
+    stream.write_all(&banner).await?;
+    let mut last = tokio::time::Instant::now();
+    loop {
+        // Wait for bytes or for the next tick, whichever comes first.
+        let wait = match options.time_scale {
+            Some(_) => options.tick,
+            None => Duration::ZERO,
+        };
+        tokio::select! {
+            read = stream.read(&mut buf) => {
+                let n = read?;
+                if n == 0 {
+                    return Ok(());
+                }
+                inbox.extend_from_slice(&buf[..n]);
+            }
+            () = tokio::time::sleep(wait) => {}
+        }
+        let now = tokio::time::Instant::now();
+        let dt = match options.time_scale {
+            Some(scale) => (now - last).as_secs_f64() * scale,
+            None => options.fast_step,
+        };
+        last = now;
+        match options.baud {
+            Some(baud) => {
+                budget = (budget + dt * f64::from(baud) / 10.0).min(f64::from(baud));
+                let n = (budget.floor() as usize).min(inbox.len());
+                controller.receive(&inbox[..n]);
+                inbox.drain(..n);
+                budget -= n as f64;
+            }
+            None => {
+                controller.receive(&inbox);
+                inbox.clear();
+            }
+        }
+        controller
+            .advance(dt)
+            .map_err(|e| std::io::Error::other(e.to_string()))?;
+        for e in controller.take_events() {
+            on_event(&e);
+        }
+        let out = controller.take_output();
+        if !out.is_empty() {
+            stream.write_all(&out).await?;
+            stream.flush().await?;
+        }
+        if options.time_scale.is_none() {
+            tokio::task::yield_now().await;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tests::profile;
+    use crate::ControllerOptions;
+    use tokio::io::AsyncBufReadExt;
+
+    async fn answers_to(lines: &[&str], options: ServeOptions) -> (Vec<String>, f64) {
+        let (client, server) = tokio::io::duplex(4096);
+        let mut controller = Controller::new(&profile(), ControllerOptions::default()).unwrap();
+        let task = tokio::spawn(async move {
+            serve(server, &mut controller, options, |_| {})
+                .await
+                .unwrap();
+            controller.now()
+        });
+        let (read, mut write) = tokio::io::split(client);
+        let mut reader = tokio::io::BufReader::new(read);
+        // grbl opens with a blank line, then the banner.
+        let mut banner = String::new();
+        while banner.trim().is_empty() {
+            banner.clear();
+            reader.read_line(&mut banner).await.unwrap();
+        }
+        assert!(banner.starts_with("Grbl"), "{banner}");
+        let mut answers = Vec::new();
+        for line in lines {
+            write
+                .write_all(format!("{line}\n").as_bytes())
+                .await
+                .unwrap();
+            let mut answer = String::new();
+            reader.read_line(&mut answer).await.unwrap();
+            answers.push(answer.trim().to_owned());
+        }
+        drop(write);
+        drop(reader);
+        (answers, task.await.unwrap())
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn each_line_gets_its_answer_over_the_stream() {
+        let (answers, _) =
+            answers_to(&["G21 G90", "G0 Z1", "G1 X1 Q2"], ServeOptions::default()).await;
+        assert_eq!(answers[..2], ["ok", "ok"]);
+        assert!(answers[2].starts_with("error:"), "{answers:?}");
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn the_link_rate_limits_what_arrives() {
+        // At 1200 baud (120 bytes/s), 8 lines of 13 bytes take at least 104/120 s of
+        // simulated time to arrive, however fast they were written.
+        let lines = ["G0 Z1.000001"; 8];
+        let opts = ServeOptions {
+            baud: Some(1200),
+            ..ServeOptions::default()
+        };
+        let (answers, simulated) = answers_to(&lines, opts).await;
+        assert!(answers.iter().all(|a| a == "ok"));
+        assert!(simulated >= 104.0 / 120.0 - 0.01, "{simulated}");
+    }
+}
