@@ -37,7 +37,10 @@
 //! - [`plan`]: all of the above in order, with the report.
 //! - [`protocol`]: sans-I/O controller protocols: grbl/grblHAL streaming by character
 //!   counting, controller responses, resume preambles.
+//! - [`simulator`]: the simulated controller (`whirl-sim`) as whirl embeds it.
 //! - [`exec_log`]: the executed-path log (JSON lines), its summary and plots.
+//! - [`transport`]: the async edges that move a protocol's bytes: a program streamed to a
+//!   controller over a serial line (tokio, tokio-serial), logged to the executed-path log.
 //!
 //! # Example
 //!
@@ -80,9 +83,11 @@ pub mod plan;
 pub mod profile;
 pub mod protocol;
 pub mod segment;
+pub mod simulator;
 pub mod svg;
 pub mod sweep;
 pub mod table;
+pub mod transport;
 
 /// Shapes shared by the unit tests.
 #[cfg(test)]

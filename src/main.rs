@@ -43,6 +43,28 @@ enum Command {
         #[command(subcommand)]
         tool: SweepTool,
     },
+    /// Stream a program (or a job, planned first) to a grbl/grblHAL controller on a serial
+    /// port, logging everything to an append-only JSON-lines file. The program is checked
+    /// against the machine's travel and speed limits before the first byte goes out.
+    Stream {
+        /// A program (G-code) or a job (`.toml`, planned for the machine first).
+        input: PathBuf,
+        /// The serial port (a device or a pseudo-terminal link such as whirl-sim's).
+        #[arg(long)]
+        port: String,
+        /// Baud rate.
+        #[arg(long, default_value_t = 115_200)]
+        baud: u32,
+        /// Machine profile; default: the built-in simulator's.
+        #[arg(long)]
+        machine: Option<PathBuf>,
+        /// The executed-path log (appended to).
+        #[arg(long)]
+        log: PathBuf,
+        /// Give up (with a feed hold) after this many seconds without any progress.
+        #[arg(long, default_value_t = 30.0)]
+        stall_timeout: f64,
+    },
     /// Read executed-path logs.
     Log {
         #[command(subcommand)]
@@ -199,6 +221,62 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 csv.lines().count() - 1
             );
             Ok(ExitCode::SUCCESS)
+        }
+        Command::Stream {
+            input,
+            port,
+            baud,
+            machine,
+            log,
+            stall_timeout,
+        } => {
+            let machine = load_machine(machine.as_deref())?;
+            let text = if input.extension().is_some_and(|e| e == "toml") {
+                let job = Job::load(&input)?;
+                whirl::plan::plan(&job, &machine)
+                    .with_context(|| format!("cannot plan {}", job_name(&job)))?
+                    .text
+            } else {
+                std::fs::read_to_string(&input)
+                    .with_context(|| format!("cannot read {}", input.display()))?
+            };
+            let lines: Vec<String> = text.lines().map(str::to_owned).collect();
+            let mut exec_log = whirl::exec_log::ExecLog::append(&log)?;
+            let options = whirl::transport::StreamOptions {
+                program: input.display().to_string(),
+                machine: Some(machine),
+                no_progress_timeout: Some(std::time::Duration::from_secs_f64(stall_timeout)),
+                ..Default::default()
+            };
+            let runtime = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()?;
+            let outcome = runtime.block_on(whirl::transport::stream_port(
+                &port,
+                baud,
+                lines,
+                options,
+                &mut exec_log,
+            ))?;
+            println!(
+                "{}: {} of {} lines acknowledged in {:.1} s{}",
+                input.display(),
+                outcome.lines_acked,
+                outcome.lines_total,
+                outcome.wall_time.as_secs_f64(),
+                outcome
+                    .link_utilization
+                    .map_or(String::new(), |u| format!(", link {:.0} % busy", 100.0 * u))
+            );
+            if outcome.completed() {
+                Ok(ExitCode::SUCCESS)
+            } else {
+                anyhow::bail!(
+                    "the stream stopped: {:?}; resume from {:?}",
+                    outcome.ending,
+                    outcome.resume
+                )
+            }
         }
         Command::Log { command } => {
             match command {

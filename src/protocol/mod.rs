@@ -41,7 +41,7 @@ pub mod response;
 pub mod resume;
 
 #[cfg(test)]
-mod fake;
+pub(crate) mod fake;
 
 pub use codes::{alarm_message, error_message};
 pub use grbl::{

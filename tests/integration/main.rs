@@ -3,6 +3,7 @@
 mod cli;
 mod linkage;
 mod sim;
+mod stream;
 mod sweep;
 mod util;
 mod verify;

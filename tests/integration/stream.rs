@@ -1,0 +1,108 @@
+//! `whirl stream` to `whirl-sim` over a real pseudo-terminal, end to end.
+
+use crate::util;
+use std::ffi::OsStr;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// whirl-sim on a pseudo-terminal linked at `link`; killed when dropped.
+struct Sim(Child);
+
+impl Sim {
+    fn start(link: &std::path::Path) -> Sim {
+        let child = Command::new(env!("CARGO_BIN_EXE_whirl-sim"))
+            .args([
+                OsStr::new("--pty"),
+                link.as_os_str(),
+                OsStr::new("--time-scale"),
+                OsStr::new("50"),
+            ])
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("whirl-sim starts");
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while !link.exists() {
+            assert!(
+                Instant::now() < deadline,
+                "whirl-sim made no pseudo-terminal"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        Sim(child)
+    }
+}
+
+impl Drop for Sim {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn a_program_streams_to_the_simulator_with_every_line_acknowledged_and_logged() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("grbl");
+    let _sim = Sim::start(&link);
+    // The lead-in and 60 linked moves of a planned program, then the retract.
+    let planned = dir.path().join("p.nc");
+    let o = util::whirl(&[
+        OsStr::new("plan"),
+        util::example("double-start").as_os_str(),
+        OsStr::new("-o"),
+        planned.as_os_str(),
+    ]);
+    assert!(o.status.success());
+    let text = std::fs::read_to_string(&planned).unwrap();
+    let mut lines: Vec<&str> = text.lines().take(66).collect();
+    lines.extend(["G94", "G0 X0", "M5", "M2"]);
+    let program = util::write(dir.path(), "short.nc", &(lines.join("\n") + "\n"));
+    let log = dir.path().join("exec.jsonl");
+    let o = util::whirl(&[
+        OsStr::new("stream"),
+        program.as_os_str(),
+        OsStr::new("--port"),
+        link.as_os_str(),
+        OsStr::new("--log"),
+        log.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let read = whirl::exec_log::read(&log).unwrap();
+    let s = whirl::exec_log::Summary::of(&read);
+    assert_eq!(
+        (s.sent, s.acked, s.errors, s.alarms),
+        (lines.len(), lines.len(), 0, 0)
+    );
+    assert_eq!(s.completed, Some(true));
+    // Lines were sent in order, each exactly once.
+    let sent: Vec<usize> = read
+        .records
+        .iter()
+        .filter_map(|r| match &r.event {
+            whirl::exec_log::Event::Sent { line, .. } => Some(*line),
+            _ => None,
+        })
+        .collect();
+    assert!(sent.windows(2).all(|w| w[1] == w[0] + 1), "{sent:?}");
+}
+
+#[test]
+fn a_program_past_the_travel_is_refused_before_the_port_is_opened() {
+    let dir = tempfile::tempdir().unwrap();
+    let program = util::write(dir.path(), "far.nc", "G21 G90\nG0 X0 Z0 C0\nG0 Z900\nM2\n");
+    let log = dir.path().join("exec.jsonl");
+    let o = util::whirl(&[
+        OsStr::new("stream"),
+        program.as_os_str(),
+        OsStr::new("--port"),
+        OsStr::new("/nonexistent/port"),
+        OsStr::new("--log"),
+        log.as_os_str(),
+    ]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("Z") && !err.contains("/nonexistent/port"),
+        "the limit, not the port: {err}"
+    );
+}
