@@ -5,45 +5,9 @@
 use crate::util;
 use whirl::gcode::program::Pose;
 use whirl::job::Job;
-use whirl::machine::{MachineProfile, NumberType};
-use whirl_sim::machine::{Axis, Machine, Number};
+use whirl::machine::MachineProfile;
+use whirl::simulator::machine;
 use whirl_sim::{Controller, ControllerOptions, Event};
-
-/// The simulator's view of a whirl machine profile.
-fn machine(p: &MachineProfile) -> Machine {
-    let axis = |min, max, max_rate, accel| Axis {
-        min,
-        max,
-        max_rate,
-        accel,
-    };
-    Machine {
-        x: axis(
-            Some(p.axes.x.min),
-            Some(p.axes.x.max),
-            p.axes.x.max_rate,
-            p.axes.x.accel,
-        ),
-        z: axis(
-            Some(p.axes.z.min),
-            Some(p.axes.z.max),
-            p.axes.z.max_rate,
-            p.axes.z.accel,
-        ),
-        c: axis(
-            p.axes.c.min,
-            p.axes.c.max,
-            p.axes.c.max_rate,
-            p.axes.c.accel,
-        ),
-        number: match p.number {
-            NumberType::F32 => Number::F32,
-            NumberType::F64 => Number::F64,
-        },
-        max_line_length: p.max_line_length,
-        spindle_rpm: p.spindle.as_ref().map(|s| (s.min_rpm, s.max_rpm)),
-    }
-}
 
 #[test]
 fn a_planned_program_runs_on_the_simulator_line_by_line_and_ends_where_it_says() {
