@@ -217,11 +217,6 @@ impl Profile {
         }
     }
 
-    /// Whether `u` lies on a sharp edge (where the tangent turns in place).
-    pub fn is_corner(&self, u: f64) -> bool {
-        matches!(self.pieces[self.locate(u).0], Piece::Corner { .. })
-    }
-
     /// Smallest and largest radius from the screw axis over the period.
     pub fn radius_range(&self) -> (f64, f64) {
         let n = 2000;
