@@ -52,19 +52,7 @@ pub fn verify(
     program: &str,
     picture: bool,
 ) -> Result<Verification, CheckError> {
-    let profile = job.profile()?;
-    let linkage = Linkage {
-        p: job.p(),
-        ring: job.ring(&profile),
-    };
-    let z_range = (job.groove.z_start, job.groove.z_start + job.groove.length);
-    let target = Target::new(
-        &profile,
-        linkage,
-        job.groove.starts,
-        z_range,
-        job.cut.axial_feed,
-    )?;
+    let target = target(job)?;
     let motion = Motion::new(&read_program(program, machine.x_diameter())?)?;
     let m: Measurement = target.measure(&motion)?;
     let delta = job.cut.delta;
@@ -95,9 +83,26 @@ pub fn verify(
     })
 }
 
+/// `job`'s groove over its formed length, as the engine measures it.
+pub fn target(job: &Job) -> Result<Target, CheckError> {
+    let profile = job.profile()?;
+    let linkage = Linkage {
+        p: job.p(),
+        ring: job.ring(&profile),
+    };
+    let z_range = (job.groove.z_start, job.groove.z_start + job.groove.length);
+    Ok(Target::new(
+        profile,
+        linkage,
+        job.groove.starts,
+        z_range,
+        job.cut.axial_feed,
+    )?)
+}
+
 /// A round magnification (1, 2 or 5 × 10ⁿ) that draws the largest error as about a
 /// twentieth of the pitch.
-fn magnification(error: f64, pitch: f64) -> f64 {
+pub(crate) fn magnification(error: f64, pitch: f64) -> f64 {
     if error <= 0.0 {
         return 1.0;
     }

@@ -6,11 +6,15 @@
 //! reported, not fatal, when the log is read. Times are seconds since the run started. The
 //! format is the same for every transport.
 
+use crate::check::{self, CheckError};
+use crate::job::Job;
 use crate::svg::{Plot, Series};
+use crate::sweep::verify::{Motion, VerifyError};
 use serde::{Deserialize, Serialize};
 use std::fs::{File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 
 /// One logged event.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -74,16 +78,22 @@ pub enum Event {
         /// The text.
         text: String,
     },
-    /// A straight move the controller executed (from its own execution record).
+    /// A straight move the controller executed (from its own execution record, so only
+    /// from a simulated controller).
     Executed {
-        /// Program line.
-        line: usize,
+        /// Program line: the N word of the line that queued it (whirl numbers every line of
+        /// a grblHAL program with its file line); `None` for a line without one.
+        #[serde(skip_serializing_if = "Option::is_none", default)]
+        line: Option<usize>,
         /// Start and end time, s.
         times: [f64; 2],
         /// X, Z (mm), C (degrees) at the start.
         from: [f64; 3],
         /// At the end.
         to: [f64; 3],
+        /// A rapid (G0): positioning, not cutting.
+        #[serde(skip_serializing_if = "std::ops::Not::not", default)]
+        rapid: bool,
     },
     /// The run ended.
     End {
@@ -128,10 +138,12 @@ pub enum LogError {
     },
 }
 
-/// An append-only log file.
-#[derive(Debug)]
+/// An append-only log file. Clones write to the same file, a whole event at a time, so the
+/// streamer and an in-process simulator can log side by side.
+#[derive(Debug, Clone)]
 pub struct ExecLog {
-    file: File,
+    /// `None`: events are dropped (a dry run without a log).
+    file: Option<Arc<Mutex<File>>>,
     path: PathBuf,
 }
 
@@ -147,19 +159,31 @@ impl ExecLog {
                 source,
             })?;
         Ok(ExecLog {
-            file,
+            file: Some(Arc::new(Mutex::new(file))),
             path: path.to_owned(),
         })
     }
 
+    /// A log that keeps nothing, for a run the caller asked no log of.
+    pub fn discard() -> ExecLog {
+        ExecLog {
+            file: None,
+            path: PathBuf::new(),
+        }
+    }
+
     /// Append one event: one line, written in one call and flushed to the OS.
     pub fn write(&mut self, t: f64, event: Event) -> Result<(), LogError> {
+        let Some(file) = &self.file else {
+            return Ok(());
+        };
         let mut line =
             serde_json::to_string(&Record { t, event }).expect("log events always serialise");
         line.push('\n');
-        self.file
-            .write_all(line.as_bytes())
-            .and_then(|()| self.file.flush())
+        // A writer that panicked mid-line left at most a torn line, which `read` tolerates.
+        let mut file = file.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        file.write_all(line.as_bytes())
+            .and_then(|()| file.flush())
             .map_err(|source| LogError::Io {
                 path: self.path.clone(),
                 source,
@@ -221,7 +245,8 @@ pub struct Summary {
     pub alarms: usize,
     /// Moves the controller reported executing.
     pub executed: usize,
-    /// Program lines executed more than once (a resumed run must have none).
+    /// Program lines executed more than once (a resumed run must have none), as far as
+    /// executed moves name their lines.
     pub executed_twice: Vec<usize>,
     /// Seconds from the first to the last event.
     pub duration_s: f64,
@@ -256,7 +281,9 @@ impl Summary {
                 Event::Alarm { .. } => s.alarms += 1,
                 Event::Executed { line, .. } => {
                     s.executed += 1;
-                    *seen.entry(*line).or_default() += 1;
+                    if let Some(line) = line {
+                        *seen.entry(*line).or_default() += 1;
+                    }
                 }
                 Event::End { completed, .. } => s.completed = Some(*completed),
                 Event::Status { .. } | Event::Message { .. } => {}
@@ -272,6 +299,32 @@ impl Summary {
         }
         s
     }
+}
+
+/// The axial section the logged executed moves cut, against `job`'s target, with the error
+/// magnified so that Δ draws as a twentieth of the pitch, around the middle of the groove.
+/// Needs executed moves, which a simulated controller logs; rapids are positioning and are
+/// left out, as the simulator's Δ guard leaves them.
+pub fn section_plot(log: &Read, job: &Job) -> Result<Plot, CheckError> {
+    let target = check::target(job)?;
+    let mut motion = Motion::empty();
+    for (i, r) in log.records.iter().enumerate() {
+        if let Event::Executed {
+            from,
+            to,
+            rapid: false,
+            ..
+        } = &r.event
+        {
+            motion.push(*from, *to, i + 1)?;
+        }
+    }
+    if !motion.is_turning() {
+        return Err(VerifyError::NoTurning.into());
+    }
+    let pitch = job.groove.lead / f64::from(job.groove.starts);
+    let middle = job.groove.z_start + job.groove.length / 2.0;
+    Ok(target.section_plot(&motion, middle, check::magnification(job.cut.delta, pitch)))
 }
 
 /// X, Z and C over time, from the status reports: one plot per axis.
@@ -335,10 +388,11 @@ mod tests {
             (
                 0.9,
                 Event::Executed {
-                    line: 1,
+                    line: Some(1),
                     times: [0.2, 0.8],
                     from: [0.0; 3],
                     to: [1.0, 0.0, 0.0],
+                    rapid: false,
                 },
             ),
             (
@@ -373,6 +427,27 @@ mod tests {
         assert!(!read.torn_tail);
         let back: Vec<(f64, Event)> = read.records.into_iter().map(|r| (r.t, r.event)).collect();
         assert_eq!(&back[..sample().len()], &sample()[..]);
+    }
+
+    #[test]
+    fn clones_from_two_threads_write_whole_events_to_one_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("exec.jsonl");
+        let log = ExecLog::append(&path).unwrap();
+        std::thread::scope(|scope| {
+            for k in 0..2 {
+                let mut log = log.clone();
+                scope.spawn(move || {
+                    for i in 0..500 {
+                        let text = format!("writer {k} event {i} {}", "x".repeat(200));
+                        log.write(f64::from(i), Event::Message { text }).unwrap();
+                    }
+                });
+            }
+        });
+        let read = read(&path).unwrap();
+        assert_eq!(read.records.len(), 1000);
+        assert!(!read.torn_tail);
     }
 
     #[test]
@@ -413,10 +488,11 @@ mod tests {
         records.push(Record {
             t: 1.5,
             event: Event::Executed {
-                line: 1,
+                line: Some(1),
                 times: [1.2, 1.4],
                 from: [0.0; 3],
                 to: [1.0, 0.0, 0.0],
+                rapid: false,
             },
         });
         let s = Summary::of(&Read {

@@ -38,6 +38,8 @@
 //! - [`protocol`]: sans-I/O controller protocols: grbl/grblHAL streaming by character
 //!   counting, controller responses, resume preambles.
 //! - [`simulator`]: the simulated controller (`whirl-sim`) as whirl embeds it.
+//! - [`dry_run`]: a planned job streamed to the in-process simulator over a pseudo-terminal,
+//!   its profile error measured by the simulator's Δ guard.
 //! - [`exec_log`]: the executed-path log (JSON lines), its summary and plots.
 //! - [`transport`]: the async edges that move a protocol's bytes: a program streamed to a
 //!   controller over a serial line (tokio, tokio-serial), logged to the executed-path log.
@@ -71,6 +73,7 @@
 pub mod brent;
 pub mod budget;
 pub mod check;
+pub mod dry_run;
 pub mod exec_log;
 pub mod gcode;
 pub mod interference;

@@ -65,6 +65,32 @@ enum Command {
         #[arg(long, default_value_t = 30.0)]
         stall_timeout: f64,
     },
+    /// Dry-run a job: plan it, start the simulated controller in this process on a
+    /// pseudo-terminal, stream the program to it through the same serial code a machine gets,
+    /// and report what the simulator measured against Δ. Exits 0 only if the job completed
+    /// within Δ; 2 if the simulator measured it beyond Δ; 1 on any other stop or error.
+    DryRun {
+        /// The job file (TOML).
+        job: PathBuf,
+        /// Machine profile; default: the built-in simulator's.
+        #[arg(long)]
+        machine: Option<PathBuf>,
+        /// The executed-path log (appended to); none kept if left out.
+        #[arg(long)]
+        log: Option<PathBuf>,
+        /// Where to write the report (JSON).
+        #[arg(long)]
+        report: Option<PathBuf>,
+        /// Simulated seconds per wall second; default: as fast as the host allows.
+        #[arg(long)]
+        time_scale: Option<f64>,
+        /// The link's baud rate, emulated by the simulator.
+        #[arg(long, default_value_t = 115_200)]
+        baud: u32,
+        /// The simulated controller's receive buffer, bytes (grblHAL 1024, grbl on an AVR 128).
+        #[arg(long, default_value_t = 1024)]
+        rx: usize,
+    },
     /// Read executed-path logs.
     Log {
         #[command(subcommand)]
@@ -97,13 +123,18 @@ enum LogCommand {
         /// The executed-path log (JSON lines).
         log: PathBuf,
     },
-    /// Draw X, Z and C over time from the status reports (SVG).
+    /// Draw X, Z and C over time from the status reports and, with `--job`, the axial
+    /// section the logged executed moves cut against the job's target (SVG).
     Plot {
         /// The executed-path log (JSON lines).
         log: PathBuf,
         /// Where to write the SVG.
         #[arg(short, long)]
         output: PathBuf,
+        /// The job whose groove the run cut (for the measured section; needs the executed
+        /// moves a simulator logs).
+        #[arg(long)]
+        job: Option<PathBuf>,
     },
 }
 
@@ -134,7 +165,7 @@ enum SweepTool {
     },
 }
 
-/// Exit code of `whirl verify` for a program measured beyond Δ.
+/// Exit code of `whirl verify` and `whirl dry-run` for a program measured beyond Δ.
 const BEYOND_DELTA: u8 = 2;
 
 fn main() -> ExitCode {
@@ -278,6 +309,84 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 )
             }
         }
+        Command::DryRun {
+            job: job_path,
+            machine,
+            log,
+            report,
+            time_scale,
+            baud,
+            rx,
+        } => {
+            let machine = load_machine(machine.as_deref())?;
+            let job = Job::load(&job_path)?;
+            let plan = whirl::plan::plan(&job, &machine)
+                .with_context(|| format!("cannot plan {}", job_name(&job)))?;
+            let lines: Vec<String> = plan.text.lines().map(str::to_owned).collect();
+            let mut exec_log = match &log {
+                Some(path) => whirl::exec_log::ExecLog::append(path)?,
+                None => whirl::exec_log::ExecLog::discard(),
+            };
+            let options = whirl::dry_run::DryRunOptions {
+                time_scale: time_scale.filter(|s| *s > 0.0),
+                baud,
+                rx_size: rx,
+                ..Default::default()
+            };
+            let runtime = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()?;
+            let r = runtime.block_on(whirl::dry_run::dry_run(
+                &job,
+                &machine,
+                &job_path.display().to_string(),
+                lines,
+                &options,
+                &mut exec_log,
+            ))?;
+            let json = serde_json::to_string_pretty(&r)?;
+            write_all(&[(report.as_deref(), &json)])?;
+            println!(
+                "{}: {} of {} lines acknowledged; {:.1} s on the machine, dry-run in {:.1} s; \
+                 link {:.1} % busy at {} baud",
+                r.job,
+                r.lines_acked,
+                r.lines,
+                r.simulated_time_s,
+                r.wall_time_s,
+                100.0 * r.link_utilization,
+                r.baud
+            );
+            println!(
+                "profile error measured by the simulator: overcut {:.4} mm, undercut {:.4} mm \
+                 over {} of {} points; Δ {} mm",
+                r.max_overcut_mm, r.max_undercut_mm, r.points_measured, r.points, r.delta_mm
+            );
+            for a in &r.alarms {
+                println!(
+                    "ALARM:{} {}{}",
+                    a.code,
+                    a.message,
+                    a.detail
+                        .as_ref()
+                        .map_or(String::new(), |d| format!(": {d}"))
+                );
+            }
+            if let Some(stop) = &r.stop {
+                println!("stopped: {stop}");
+            }
+            let beyond = r.alarms.iter().any(|a| a.code == 64) || r.max_error_mm > r.delta_mm;
+            Ok(if r.within_delta {
+                println!("completed within Δ");
+                ExitCode::SUCCESS
+            } else if beyond {
+                println!("BEYOND Δ");
+                ExitCode::from(BEYOND_DELTA)
+            } else {
+                println!("did not complete");
+                ExitCode::FAILURE
+            })
+        }
         Command::Log { command } => {
             match command {
                 LogCommand::Summary { log } => {
@@ -285,10 +394,17 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     let s = whirl::exec_log::Summary::of(&read);
                     println!("{}", serde_json::to_string_pretty(&s)?);
                 }
-                LogCommand::Plot { log, output } => {
+                LogCommand::Plot { log, output, job } => {
                     let read = whirl::exec_log::read(&log)?;
-                    let svg = whirl::svg::stack(&whirl::exec_log::axis_plots(&read));
-                    write_all(&[(Some(&output), &svg)])?;
+                    let mut plots = whirl::exec_log::axis_plots(&read);
+                    if let Some(job) = job {
+                        let job = Job::load(&job)?;
+                        plots.push(
+                            whirl::exec_log::section_plot(&read, &job)
+                                .with_context(|| format!("{}", log.display()))?,
+                        );
+                    }
+                    write_all(&[(Some(&output), &whirl::svg::stack(&plots))])?;
                 }
             }
             Ok(ExitCode::SUCCESS)

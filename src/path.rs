@@ -8,8 +8,12 @@
 //!
 //! Lead-in: X to its clear position at rapid (it only moves the ring away from the work, see
 //! [`PathSpec::x_clear`]), Z and C to the first node at rapid, the ring spindle on, X in at the
-//! plunge feed. Lead-out: X back to clear at rapid, the spindle off, and when C was rebased
-//! (G92) the offset cancelled (G92.1), so the next program starts in this one's C frame.
+//! plunge feed. Lead-out: X back to clear at rapid, the spindle off.
+//!
+//! C is written as it is, however many turns it reaches: grbl-family controllers compute
+//! every target as a 32-bit *machine* position, so renaming C with G92 would win no
+//! precision back, and grbl stops all motion for every G92 (a dwell mark on the groove).
+//! The planner counts C's resolution at its largest value in the error budget instead.
 
 use crate::gcode::program::{Block, Program};
 use crate::segment::Nodes;
@@ -37,8 +41,6 @@ pub struct PathSpec {
     /// X at which the ring is clear of the work all round: moving X there from a cutting pose
     /// only moves the cutting side of the ring away from the axis.
     pub x_clear: f64,
-    /// On controllers with 32-bit coordinates: rebase C (G92) before |C| passes this, degrees.
-    pub c_limit_deg: Option<f64>,
 }
 
 /// The moves of the whole groove, and how many linked segments they hold.
@@ -101,26 +103,15 @@ pub fn build(nodes: &Nodes, spec: &PathSpec, title: &str) -> Path {
         feed: spec.plunge_feed,
     });
     let deg_per_min = 360.0 * spec.workpiece_rpm;
-    let mut offset = 0.0; // degrees of C renamed away by G92
-    let mut rebased = false;
     let mut prev_c = c0;
     for &(x, z, c) in &poses[1..] {
         blocks.push(Block::Linked {
             x,
             z,
-            c: c - offset,
+            c,
             minutes: (c - prev_c) / deg_per_min,
         });
         prev_c = c;
-        if let Some(limit) = spec.c_limit_deg {
-            // One more turn must still fit below the limit.
-            if (c - offset).abs() > limit - 360.0 {
-                let turns = ((c - offset) / 360.0).floor();
-                offset += 360.0 * turns;
-                blocks.push(Block::RebaseC { c: c - offset });
-                rebased = true;
-            }
-        }
     }
     blocks.push(Block::Rapid {
         x: Some(spec.x_clear),
@@ -128,13 +119,6 @@ pub fn build(nodes: &Nodes, spec: &PathSpec, title: &str) -> Path {
         c: None,
     });
     blocks.push(Block::SpindleOff);
-    if rebased {
-        // After M5: the ring stops as soon as it is clear of the work, and the frame reset,
-        // which moves nothing, comes last, next to the program end. grblHAL and LinuxCNC
-        // keep a G92 offset past M2, so without it a re-cut or second pass would start in
-        // a C frame shifted by whole turns from this one.
-        blocks.push(Block::ClearRebase);
-    }
     let revolutions = (prev_c - c0) / 360.0;
     Path {
         program: Program { blocks },
@@ -177,7 +161,7 @@ mod tests {
     }
 
     /// A 2 mm lead, 20 mm of groove: 10 workpiece turns, 3600° of C.
-    fn spec(c_limit_deg: Option<f64>) -> PathSpec {
+    fn spec() -> PathSpec {
         PathSpec {
             p: 2.0 / TAU,
             period: TAU,
@@ -188,66 +172,35 @@ mod tests {
             z_from: 0.0,
             z_to: 20.0,
             x_clear: 30.0,
-            c_limit_deg,
         }
     }
 
-    fn last_index(program: &Program, wanted: fn(&Block) -> bool) -> Option<usize> {
-        program.blocks.iter().rposition(wanted)
-    }
-
     #[test]
-    fn a_rebased_path_ends_with_the_offset_cleared() {
-        // A limit of 1080° rebases every two turns or so.
-        let path = build(&nodes(), &spec(Some(1080.0)), "rebased");
+    fn c_turns_on_unrenamed_to_the_end_and_the_ring_retracts_before_it_stops() {
+        let path = build(&nodes(), &spec(), "plain");
         let blocks = &path.program.blocks;
-        let is_rebase = |b: &Block| matches!(b, Block::RebaseC { .. });
-        let is_clear = |b: &Block| *b == Block::ClearRebase;
-        let rebases = blocks.iter().filter(|b| is_rebase(b)).count();
-        assert!(rebases >= 2, "{rebases} rebases");
-        assert_eq!(blocks.iter().filter(|b| is_clear(b)).count(), 1);
-        let clear = last_index(&path.program, is_clear).unwrap();
-        assert!(last_index(&path.program, is_rebase).unwrap() < clear);
-        // After the final retract and the spindle off: the last block.
-        assert_eq!(clear, blocks.len() - 1);
-        assert_eq!(blocks[clear - 1], Block::SpindleOff);
+        assert!(!blocks
+            .iter()
+            .any(|b| matches!(b, Block::RebaseC { .. } | Block::ClearRebase)));
+        let n = blocks.len();
+        assert_eq!(blocks[n - 1], Block::SpindleOff);
         assert_eq!(
-            blocks[clear - 2],
+            blocks[n - 2],
             Block::Rapid {
                 x: Some(30.0),
                 z: None,
                 c: None
             }
         );
-        // The controller's C stays within the limit, and the continuous C runs on to the
-        // full 3600° and stays there through the clear.
-        for block in blocks {
-            if let Some(Pose { c: Some(c), .. }) = block.target() {
-                assert!(c.abs() <= 1080.0, "{c}");
-            }
-        }
+        // 10 turns: C rises steadily to 3600°, written as it is.
         let steps: Vec<_> = path.program.steps(Pose::UNKNOWN).collect();
-        let end = steps[clear].to.c.unwrap();
+        let end = steps[n - 1].to.c.unwrap();
         assert!((end - 3600.0).abs() < 1e-9, "{end}");
-        assert_eq!(steps[clear].from, steps[clear].to);
         let c_rises = steps.windows(2).all(|w| match (w[0].to.c, w[1].to.c) {
             (Some(a), Some(b)) => b >= a,
             _ => true,
         });
         assert!(c_rises);
         assert!((path.revolutions - 10.0).abs() < 1e-9);
-    }
-
-    #[test]
-    fn an_unrebased_path_neither_rebases_nor_clears() {
-        let path = build(&nodes(), &spec(None), "plain");
-        let blocks = &path.program.blocks;
-        assert!(!blocks
-            .iter()
-            .any(|b| matches!(b, Block::RebaseC { .. } | Block::ClearRebase)));
-        assert_eq!(blocks.last(), Some(&Block::SpindleOff));
-        // The same motion as the rebased path, only unrenamed.
-        let rebased = build(&nodes(), &spec(Some(1080.0)), "rebased");
-        assert_eq!(path.segments, rebased.segments);
     }
 }

@@ -68,8 +68,6 @@ pub struct Report {
     pub overrun_mm: f64,
     /// Decimals written for X/Z and for C.
     pub decimals: [u32; 2],
-    /// G92 rebases of C (32-bit controllers).
-    pub c_rebases: usize,
     /// Lines of program text.
     pub lines: usize,
     /// The swept-volume engine's measurement of the program (`whirl plan --verify`).
@@ -108,6 +106,24 @@ pub enum PlanError {
     /// Δ cannot be met.
     #[error(transparent)]
     Budget(#[from] BudgetError),
+    /// A 32-bit controller cannot hold C precisely enough over the whole groove.
+    #[error(
+        "on a controller with 32-bit positions C reaches {c_max:.0}° over this groove, where it \
+         is held only to ±{resolution_deg}°: up to {error_mm:.4} mm off the groove, more than \
+         half of Δ = {delta} mm (G92 cannot help: grbl keeps machine positions as 32-bit \
+         floats). Cut the groove in shorter jobs, raise the axial feed (fewer turns), or use a \
+         controller with 64-bit positions"
+    )]
+    CPrecision {
+        /// The largest C the program reaches, degrees.
+        c_max: f64,
+        /// Half a unit in the last place of a 32-bit float there, degrees.
+        resolution_deg: f64,
+        /// That as a distance off the groove's surface, at most, mm.
+        error_mm: f64,
+        /// Δ, mm.
+        delta: f64,
+    },
     /// Numbers cannot be written precisely enough.
     #[error("number format: {0}")]
     Format(String),
@@ -115,7 +131,7 @@ pub enum PlanError {
     #[error("machine limits: {0}")]
     Limits(String),
     /// The post-processor refused it.
-    #[error("post-processor: {0}")]
+    #[error(transparent)]
     Post(#[from] post::PostError),
 }
 
@@ -166,14 +182,17 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         },
     )?;
 
-    // Numbers: each axis's rounding (decimals written, plus half a unit of the controller's
-    // number type where it holds 32-bit floats) stays below Δ/30, so the three stay below Δ/10.
+    // Numbers. A turn δc of the ring about the workpiece axis moves it off the groove's
+    // surface by p·n_z·δc (screw invariance: turning by δc and shifting by p·δc maps the
+    // groove onto itself), so C's rounding costs at most |p|·δc whatever the radius. The
+    // decimals written keep each axis's rounding below Δ/60, unless the controller's digit
+    // limit leaves C fewer (its rounding is then counted as it is). A controller that holds
+    // 32-bit floats adds half a unit in the last place of each axis's *machine* position:
+    // grbl and grblHAL compute every target as a 32-bit machine position (G92 only renames
+    // it), so C's share grows with the turns the groove takes. That share is a fixed cost of
+    // the job; beyond Δ/2 the job is refused.
     let share = delta / 30.0;
-    let reach = rho_max + nose; // largest radius at which a C error moves the contact
-    let linear = decimals_for(share / 2.0).map_err(|e| PlanError::Format(e.to_string()))?;
-    let angular = decimals_for((share / 2.0) / reach.to_radians())
-        .map_err(|e| PlanError::Format(e.to_string()))?;
-    let written = |d: u32| 0.5 * 10f64.powi(-(d as i32));
+    let mm_per_deg = p.abs().to_radians();
     let (z_lo, z_hi) = table.z_range();
     let feed = job.cut.axial_feed;
     let z_from = job.groove.z_start + z_lo - 2.0 * feed;
@@ -183,28 +202,33 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         .iter()
         .map(|s| s.contact.pose.x.abs())
         .fold(x_clear.abs(), f64::max);
-    let (held, c_limit_deg) = match machine.number {
-        NumberType::F64 => (0.0, None),
+    // The linked motion's turns, and one for where C starts.
+    let c_max = 360.0 * ((z_to - z_from) / feed + 1.0);
+    let linear = decimals_for(share / 2.0).map_err(|e| PlanError::Format(e.to_string()))?;
+    let mut angular =
+        decimals_for((share / 2.0) / mm_per_deg).map_err(|e| PlanError::Format(e.to_string()))?;
+    if let Some(digits) = machine.dialect.max_number_digits() {
+        let whole = c_max.log10().floor() as usize + 1;
+        angular = angular.min(digits.saturating_sub(whole) as u32);
+    }
+    let written = |d: u32| 0.5 * 10f64.powi(-(d as i32));
+    let (linear_held, c_held) = match machine.number {
+        NumberType::F64 => (0.0, 0.0),
         NumberType::F32 => {
-            let half_ulp = |v: f64| f64::from(f32::EPSILON) * v.abs().max(1.0) / 2.0;
-            let linear_held = half_ulp(x_max).max(half_ulp(z_from).max(half_ulp(z_to)));
-            // Largest |C| whose half-ulp, as an arc at the reach radius, is below share/2.
-            let c_limit = (share / 2.0) / reach.to_radians() / (f64::from(f32::EPSILON) / 2.0);
-            let c_limit = c_limit.min(1e6);
-            if c_limit < 720.0 {
-                return Err(PlanError::Format(format!(
-                    "a 32-bit controller cannot hold C precisely enough for Δ = {delta} mm at \
-                     radius {reach:.2} mm, even within two turns"
-                )));
+            let c_held = f32_half_ulp(c_max) * mm_per_deg;
+            if c_held > delta / 2.0 {
+                return Err(PlanError::CPrecision {
+                    c_max,
+                    resolution_deg: f32_half_ulp(c_max),
+                    error_mm: c_held,
+                    delta,
+                });
             }
-            (linear_held, Some(c_limit))
+            let z_max = z_from.abs().max(z_to.abs());
+            (f32_half_ulp(x_max).max(f32_half_ulp(z_max)), c_held)
         }
     };
-    let rounding = (written(linear) + held) * 2.0
-        + written(angular) * reach.to_radians()
-        + c_limit_deg.map_or(0.0, |c| {
-            f64::from(f32::EPSILON) / 2.0 * c * reach.to_radians()
-        });
+    let rounding = (written(linear) + linear_held) * 2.0 + written(angular) * mm_per_deg + c_held;
 
     let blend = machine
         .blend_tolerance_mm
@@ -230,7 +254,6 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         z_from,
         z_to,
         x_clear,
-        c_limit_deg,
     };
     let title = format!(
         "whirl: {}-start {} hand groove, lead {} mm, {} whirling, R {} r {}, delta {} mm",
@@ -275,12 +298,6 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         z_range_mm: [z_from, z_to],
         overrun_mm: (z_hi - z_lo) + 2.0 * feed,
         decimals: [linear, angular],
-        c_rebases: path
-            .program
-            .blocks
-            .iter()
-            .filter(|b| matches!(b, crate::gcode::program::Block::RebaseC { .. }))
-            .count(),
         lines: text.lines().count(),
         verify: None,
     };
@@ -289,6 +306,13 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         text,
         report,
     })
+}
+
+/// Half a unit in the last place of a 32-bit float of magnitude `v`: how far from `v` the
+/// nearest float can be.
+fn f32_half_ulp(v: f64) -> f64 {
+    let v = v.abs().max(f64::from(f32::MIN_POSITIVE));
+    2f64.powi(v.log2().floor() as i32 - 24)
 }
 
 /// The X at which the ring is clear of the work all round.

@@ -15,6 +15,7 @@ use crate::machine::Machine;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Alarm, ConfigError, GrblError, TimeError};
+use crate::guard::{Breach, Guard};
 use crate::interpreter::{
     self, Dialect, MotionMode, Numbers, ParserState, Spindle, Step, SyncAction,
 };
@@ -83,6 +84,9 @@ pub enum Event {
         time: f64,
         /// Which.
         alarm: Alarm,
+        /// What the Δ guard found, for [`Alarm::ProfileError`].
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        breach: Option<Breach>,
     },
     /// Bytes arrived while the RX buffer was full and were dropped: the sender broke
     /// character counting. The damaged line is answered `error:11`.
@@ -119,7 +123,7 @@ struct Exec {
 }
 
 /// A simulated grblHAL controller for an XZC whirling lathe (see the crate docs).
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct Controller {
     options: ControllerOptions,
     dialect: Dialect,
@@ -151,6 +155,8 @@ pub struct Controller {
     ov_counter: u8,
     ov_changed: bool,
     last_state: MachineState,
+    /// The Δ guard, if one watches the motion.
+    guard: Option<Box<dyn Guard>>,
 }
 
 impl Controller {
@@ -238,6 +244,7 @@ impl Controller {
             ov_counter: 1,
             ov_changed: false,
             last_state: MachineState::Idle,
+            guard: None,
             options,
         };
         controller.last_state = controller.state();
@@ -315,6 +322,17 @@ impl Controller {
             };
         }
         Ok(())
+    }
+
+    /// Let `guard` watch every block executed from now on; a breach stops the machine with
+    /// `ALARM:64` (see [`crate::guard`]).
+    pub fn set_guard(&mut self, guard: Box<dyn Guard>) {
+        self.guard = Some(guard);
+    }
+
+    /// The guard, to read what it has measured.
+    pub fn guard(&self) -> Option<&dyn Guard> {
+        self.guard.as_deref()
     }
 
     /// Everything the controller has printed since the last call.
@@ -448,15 +466,23 @@ impl Controller {
     }
 
     fn raise(&mut self, alarm: Alarm) {
+        self.raise_with(alarm, None);
+    }
+
+    fn raise_with(&mut self, alarm: Alarm, breach: Option<Breach>) {
         self.alarm = Some(alarm);
         self.critical |= alarm.is_critical();
         self.output.push_str(&report::alarm(alarm));
+        if let Some(b) = &breach {
+            self.output.push_str(&report::message(&b.message));
+        }
         if alarm.is_critical() {
             self.output.push_str(&report::message("Reset to continue"));
         }
         self.events.push(Event::Alarm {
             time: self.now,
             alarm,
+            breach,
         });
     }
 
@@ -728,6 +754,11 @@ impl Controller {
                             break false;
                         }
                         self.apply(action);
+                        if self.critical {
+                            // The guard stopped the machine at program end.
+                            self.answer(exec.tag, exec.text, Err(GrblError::SystemGcLock));
+                            return true;
+                        }
                     } else if action == SyncAction::ProgramEnd {
                         self.output.push_str(&report::message("Pgm End"));
                     }
@@ -781,6 +812,10 @@ impl Controller {
             SyncAction::Spindle(spindle) => self.spindle = spindle,
             SyncAction::Pause => self.motion.feed_hold(),
             SyncAction::ProgramEnd => {
+                if let Some(Err(breach)) = self.guard.as_mut().map(|g| g.program_end()) {
+                    self.trip_guard(breach);
+                    return;
+                }
                 self.spindle.on = false;
                 self.output.push_str(&report::message("Pgm End"));
             }
@@ -796,9 +831,30 @@ impl Controller {
         self.collect_executed();
     }
 
+    /// Moves finished blocks to the events, showing each to the guard first while no alarm
+    /// is up (a breach found here stops what is still moving).
     fn collect_executed(&mut self) {
-        self.events
-            .extend(self.motion.take_done().into_iter().map(Event::Executed));
+        for block in self.motion.take_done() {
+            let verdict = match (&mut self.guard, self.alarm) {
+                (Some(guard), None) => guard.executed(&block),
+                _ => Ok(()),
+            };
+            self.events.push(Event::Executed(block));
+            if let Err(breach) = verdict {
+                self.trip_guard(breach);
+            }
+        }
+    }
+
+    /// The Δ guard found the executed motion beyond Δ: stop dead, as a hard limit does, drop
+    /// the queue and the line waiting on it (answered `error:9`), `ALARM:64`.
+    fn trip_guard(&mut self, breach: Breach) {
+        self.raise_with(Alarm::ProfileError, Some(breach));
+        self.motion.abort(self.now);
+        if let Some(exec) = self.exec.take() {
+            self.answer(exec.tag, exec.text, Err(GrblError::SystemGcLock));
+        }
+        self.collect_executed();
     }
 
     fn note_state(&mut self) {

@@ -119,6 +119,10 @@ pub enum Alarm {
     /// 3: soft reset while moving. grbl cannot vouch for the position (the simulator can).
     #[error("Reset while in motion. Position may be lost.")]
     AbortCycle,
+    /// 64 (whirl-sim's own): the Δ guard measured the executed motion beyond the allowable
+    /// profile error. Critical: the motion stopped dead, as at a hard limit.
+    #[error("Profile error beyond the allowable error. Motion stopped.")]
+    ProfileError,
 }
 
 impl Alarm {
@@ -127,13 +131,14 @@ impl Alarm {
         match self {
             Alarm::SoftLimit => 2,
             Alarm::AbortCycle => 3,
+            Alarm::ProfileError => 64,
         }
     }
 
     /// Whether the alarm blocks unlocking until a soft reset (grblHAL's critical events:
     /// hard and soft limits, `[MSG:Reset to continue]`).
     pub fn is_critical(self) -> bool {
-        matches!(self, Alarm::SoftLimit)
+        matches!(self, Alarm::SoftLimit | Alarm::ProfileError)
     }
 }
 

@@ -23,6 +23,7 @@
 //! - [`machine`]: what the controller knows of its machine (travel, rates, number type).
 //! - [`controller`]: the state machine tying them together.
 //! - [`serve`]: the controller served on a byte stream in simulated time (the only async part).
+//! - [`guard`]: the Δ guard's seat: a watch on executed blocks that can stop the machine.
 //! - [`error`]: the numbered answers and the simulator's own errors.
 //!
 //! # Example
@@ -68,6 +69,7 @@
 
 pub mod controller;
 pub mod error;
+pub mod guard;
 pub mod interpreter;
 pub mod machine;
 pub mod motion;
@@ -82,5 +84,6 @@ mod tests;
 
 pub use controller::{Controller, ControllerOptions, Event};
 pub use error::{Alarm, ConfigError, GrblError, TimeError};
+pub use guard::{Breach, Guard, Measured};
 pub use record::{ExecutedBlock, MoveKind, Phase, Position};
 pub use report::MachineState;

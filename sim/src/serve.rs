@@ -51,20 +51,26 @@ pub async fn serve<S: AsyncRead + AsyncWrite + Unpin>(
     stream.write_all(&banner).await?;
     let mut last = tokio::time::Instant::now();
     loop {
-        // Wait for bytes or for the next tick, whichever comes first.
-        let wait = match options.time_scale {
-            Some(_) => options.tick,
-            None => Duration::ZERO,
+        // Scaled: wait for bytes or for the next tick, whichever comes first. As fast as
+        // possible: take whatever bytes are there and go on (a timer, even of zero, would
+        // cost a timer tick of wall time per step).
+        let read = match options.time_scale {
+            Some(_) => tokio::select! {
+                read = stream.read(&mut buf) => Some(read),
+                () = tokio::time::sleep(options.tick) => None,
+            },
+            None => tokio::select! {
+                biased;
+                read = stream.read(&mut buf) => Some(read),
+                () = std::future::ready(()) => None,
+            },
         };
-        tokio::select! {
-            read = stream.read(&mut buf) => {
-                let n = read?;
-                if n == 0 {
-                    return Ok(());
-                }
-                inbox.extend_from_slice(&buf[..n]);
+        if let Some(read) = read {
+            let n = read?;
+            if n == 0 {
+                return Ok(());
             }
-            () = tokio::time::sleep(wait) => {}
+            inbox.extend_from_slice(&buf[..n]);
         }
         let now = tokio::time::Instant::now();
         let dt = match options.time_scale {
@@ -74,11 +80,16 @@ pub async fn serve<S: AsyncRead + AsyncWrite + Unpin>(
         last = now;
         match options.baud {
             Some(baud) => {
-                budget = (budget + dt * f64::from(baud) / 10.0).min(f64::from(baud));
+                budget += dt * f64::from(baud) / 10.0;
                 let n = (budget.floor() as usize).min(inbox.len());
                 controller.receive(&inbox[..n]);
                 inbox.drain(..n);
                 budget -= n as f64;
+                if inbox.is_empty() {
+                    // An idle link saves nothing up: what it could have carried while
+                    // nothing waited is gone, so bytes never arrive faster than the rate.
+                    budget = budget.min(1.0);
+                }
             }
             None => {
                 controller.receive(&inbox);
@@ -110,6 +121,16 @@ mod tests {
     use tokio::io::AsyncBufReadExt;
 
     async fn answers_to(lines: &[&str], options: ServeOptions) -> (Vec<String>, f64) {
+        answers_after(Duration::ZERO, lines, options).await
+    }
+
+    /// The answers to `lines` sent after the link has been idle for `idle`, and the
+    /// simulated time their exchange took.
+    async fn answers_after(
+        idle: Duration,
+        lines: &[&str],
+        options: ServeOptions,
+    ) -> (Vec<String>, f64) {
         let (client, server) = tokio::io::duplex(4096);
         let mut controller = Controller::new(&profile(), ControllerOptions::default()).unwrap();
         let task = tokio::spawn(async move {
@@ -127,6 +148,7 @@ mod tests {
             reader.read_line(&mut banner).await.unwrap();
         }
         assert!(banner.starts_with("Grbl"), "{banner}");
+        tokio::time::sleep(idle).await;
         let mut answers = Vec::new();
         for line in lines {
             write
@@ -139,7 +161,7 @@ mod tests {
         }
         drop(write);
         drop(reader);
-        (answers, task.await.unwrap())
+        (answers, task.await.unwrap() - idle.as_secs_f64())
     }
 
     #[tokio::test(start_paused = true)]
@@ -160,6 +182,19 @@ mod tests {
             ..ServeOptions::default()
         };
         let (answers, simulated) = answers_to(&lines, opts).await;
+        assert!(answers.iter().all(|a| a == "ok"));
+        assert!(simulated >= 104.0 / 120.0 - 0.01, "{simulated}");
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn an_idle_link_saves_up_no_rate() {
+        // Ten idle seconds first: the same 104 bytes at 120 bytes/s still take 104/120 s.
+        let lines = ["G0 Z1.000001"; 8];
+        let opts = ServeOptions {
+            baud: Some(1200),
+            ..ServeOptions::default()
+        };
+        let (answers, simulated) = answers_after(Duration::from_secs(10), &lines, opts).await;
         assert!(answers.iter().all(|a| a == "ok"));
         assert!(simulated >= 104.0 / 120.0 - 0.01, "{simulated}");
     }

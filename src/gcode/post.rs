@@ -16,7 +16,8 @@
 //! - `G0`/`G1` on every motion line (no reliance on the modal motion code);
 //! - feed rates rounded down, so rounding never makes a move faster than planned.
 //!
-//! grblHAL: `\n` line endings, no line longer than the controller's line buffer,
+//! grblHAL: every line numbered with an N word (its line in the file, so `Ln:` in status
+//! reports names the file line), `\n` line endings, no line longer than the controller's line buffer,
 //! comments in parentheses with only the characters grbl ignores there (its serial
 //! driver acts on `?`, `!`, `~` and bytes above 0x7F wherever they appear), and at most
 //! nine digits per number (grblHAL's number reader drops the rest). LinuxCNC: `%` first
@@ -42,7 +43,7 @@ pub enum Dialect {
 impl Dialect {
     /// How many digits of a number the controller reads; grblHAL's `read_float` keeps
     /// the first nine digits (leading zeros included) and silently drops the rest.
-    fn max_number_digits(self) -> Option<usize> {
+    pub fn max_number_digits(self) -> Option<usize> {
         match self {
             Dialect::GrblHal => Some(9),
             Dialect::LinuxCnc => None,
@@ -162,6 +163,7 @@ pub fn write(program: &Program, settings: &PostSettings) -> Result<String, PostE
         written: [None, None, None],
         inverse_time: false,
         spindle_on: false,
+        lines: 0,
     };
     writer.preamble();
     for (index, block) in program.blocks.iter().enumerate() {
@@ -233,17 +235,43 @@ struct Writer<'a> {
     written: [Option<String>; 3],
     inverse_time: bool,
     spindle_on: bool,
+    /// Lines written so far.
+    lines: usize,
 }
 
+/// The longest line-number prefix, `N9999999 `: grbl reads N up to 9 999 999.
+const MAX_NUMBER_PREFIX: usize = 9;
+
 impl Writer<'_> {
+    /// Whether every line carries its line number as an N word. grblHAL reports the N word
+    /// of the block executing (`Ln:` in status reports): with the file's line numbers
+    /// there, a sender knows exactly which line runs, so a stopped job resumes at the
+    /// right line and the executed-path log names file lines.
+    fn numbered(&self) -> bool {
+        self.settings.dialect == Dialect::GrblHal
+    }
+
+    /// The length of the next line's number prefix (`N12 `).
+    fn prefix_length(&self) -> usize {
+        if self.numbered() {
+            (self.lines + 1).to_string().len() + 2
+        } else {
+            0
+        }
+    }
+
     fn line(&mut self, line: &str) {
+        self.lines += 1;
+        if self.numbered() {
+            self.out.push_str(&format!("N{} ", self.lines));
+        }
         self.out.push_str(line);
         self.out.push('\n');
     }
 
     /// Writes the line of a block, checking it fits the controller's line buffer.
     fn block_line(&mut self, block: usize, line: String) -> Result<(), PostError> {
-        let length = line.chars().count();
+        let length = line.chars().count() + self.prefix_length();
         let max = self.settings.max_line_length;
         if length > max {
             return Err(PostError::LineTooLong {
@@ -319,7 +347,7 @@ impl Writer<'_> {
         let reserve = if dialect == Dialect::LinuxCnc {
             DISARM_PREFIX.len()
         } else {
-            0
+            MAX_NUMBER_PREFIX
         };
         let chunk_length = self.settings.max_line_length - 2 - reserve;
         let chars: Vec<char> = clean.chars().collect();
@@ -531,24 +559,76 @@ mod tests {
         }
     }
 
+    /// `text` without the line numbers grblHAL programs carry (lines without one kept).
+    fn unnumbered(text: &str) -> String {
+        text.lines()
+            .map(|l| {
+                let rest = l.strip_prefix('N').and_then(|r| {
+                    let digits = r.len() - r.trim_start_matches(|c: char| c.is_ascii_digit()).len();
+                    (digits > 0)
+                        .then(|| r[digits..].strip_prefix(' '))
+                        .flatten()
+                });
+                format!("{}\n", rest.unwrap_or(l))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn grblhal_lines_carry_their_file_line_numbers_and_linuxcnc_lines_none() {
+        let text = write(&sample(), &grbl()).unwrap();
+        for (i, line) in text.lines().enumerate() {
+            assert!(line.starts_with(&format!("N{} ", i + 1)), "{line}");
+        }
+        let text = write(&sample(), &linuxcnc()).unwrap();
+        assert!(text.lines().all(|l| !l.starts_with('N')), "{text}");
+    }
+
+    #[test]
+    fn a_line_that_fits_only_without_its_number_is_refused() {
+        // `G0 X1234.568 Z-1234.568 C123456.789` is 35 characters; with "N3 " in front
+        // (after the preamble and the comment) it is 38, over a 37-character limit.
+        let program = one(Block::Rapid {
+            x: Some(1234.5678),
+            z: Some(-1234.5678),
+            c: Some(123_456.789),
+        });
+        let settings = PostSettings {
+            max_line_length: 37,
+            ..grbl()
+        };
+        let error = write(&program, &settings).unwrap_err();
+        assert!(
+            matches!(
+                error,
+                PostError::LineTooLong {
+                    length: 38,
+                    max: 37,
+                    ..
+                }
+            ),
+            "{error}"
+        );
+    }
+
     #[test]
     fn grblhal_format() {
         // Unchanged words are left out (X on the first linked move, X on the one after
         // G92), G93/G94 appear only at mode changes, F is on every G1 (1/0.01 min = 100).
         let expected = "\
-G21 G90 G94
-(whirl test)
-M3 S3000
-G0 X12 Z-1 C0
-G1 X10.5 F200
-G93 G1 Z-0.5 C90 F100
-G1 X10.25 Z0 C180 F50
-G92 C0
-G1 Z0.5 C90 F100
-G94 G1 X15 F500
-G0 Z10
-M5
-M2
+N1 G21 G90 G94
+N2 (whirl test)
+N3 M3 S3000
+N4 G0 X12 Z-1 C0
+N5 G1 X10.5 F200
+N6 G93 G1 Z-0.5 C90 F100
+N7 G1 X10.25 Z0 C180 F50
+N8 G92 C0
+N9 G1 Z0.5 C90 F100
+N10 G94 G1 X15 F500
+N11 G0 Z10
+N12 M5
+N13 M2
 ";
         assert_eq!(write(&sample(), &grbl()).unwrap(), expected);
     }
@@ -634,7 +714,10 @@ G92.1
 G94
 M2
 ";
-        assert_eq!(write(&rebased_and_cleared(), &grbl()).unwrap(), grbl_text);
+        assert_eq!(
+            unnumbered(&write(&rebased_and_cleared(), &grbl()).unwrap()),
+            grbl_text
+        );
         let linuxcnc_text = "\
 %
 G21 G90 G94 G7
@@ -674,7 +757,7 @@ M2
         ]);
         for settings in [grbl(), linuxcnc()] {
             let text = write(&program, &settings).unwrap();
-            assert!(text.contains("\nG92.1\nG0 C0\n"), "{text}");
+            assert!(unnumbered(&text).contains("\nG92.1\nG0 C0\n"), "{text}");
             let read = read_program(&text, settings.x_diameter).unwrap();
             assert_eq!(read, program);
         }
@@ -704,7 +787,7 @@ M2
                 },
             ],
         };
-        let text = write(&program, &grbl()).unwrap();
+        let text = unnumbered(&write(&program, &grbl()).unwrap());
         assert_eq!(
             text,
             "G21 G90 G94\nM3 S2500.5\nG93 G1 X1 Z2 C3 F2\nM5\nG94\nM2\n"
@@ -927,7 +1010,7 @@ M2
     #[test]
     fn comments_are_sanitized_for_grbl() {
         let program = one(Block::Comment("a (nested) ?!~ ünï\tcode\u{18}".into()));
-        let text = write(&program, &grbl()).unwrap();
+        let text = unnumbered(&write(&program, &grbl()).unwrap());
         let line = text.lines().nth(2).unwrap();
         assert_eq!(line, "(a [nested] ___ _n_ code )");
     }
@@ -949,7 +1032,9 @@ M2
         let long: String = (0..700)
             .map(|i| char::from(b'a' + (i % 26) as u8))
             .collect();
-        let text = write(&one(Block::Comment(long.clone())), &grbl()).unwrap();
+        let numbered = write(&one(Block::Comment(long.clone())), &grbl()).unwrap();
+        assert!(numbered.lines().all(|l| l.len() <= 256));
+        let text = unnumbered(&numbered);
         let comments: Vec<&str> = text
             .lines()
             .filter(|l| l.starts_with('('))
@@ -958,7 +1043,6 @@ M2
         assert_eq!(comments.len(), 3);
         let joined: String = comments.iter().map(|l| &l[1..l.len() - 1]).collect();
         assert_eq!(joined, long);
-        assert!(comments.iter().all(|l| l.len() <= 256));
     }
 
     /// What a G-code program does, read line by line: the feed mode each G1 runs in and

@@ -95,7 +95,8 @@ pub fn error_message(code: u16) -> &'static str {
     }
 }
 
-/// The meaning of grbl's `ALARM:code`; codes 1–9 are grbl 1.1's, the rest grblHAL's.
+/// The meaning of grbl's `ALARM:code`; codes 1–9 are grbl 1.1's, 10–18 grblHAL's, 64
+/// whirl-sim's own.
 pub fn alarm_message(code: u16) -> &'static str {
     match code {
         1 => "hard limit triggered; machine position likely lost, re-homing recommended",
@@ -116,6 +117,7 @@ pub fn alarm_message(code: u16) -> &'static str {
         16 => "power-on self test failed",
         17 => "motor fault",
         18 => "homing fail: bad configuration",
+        64 => "profile error beyond the allowable error Δ (whirl-sim's Δ guard); motion stopped",
         _ => "unknown alarm code (not in grbl's or grblHAL's table)",
     }
 }

@@ -38,8 +38,8 @@ const PROFILE_SAMPLES: usize = 64;
 
 /// What is measured: the groove and the ring, with the seeds of the search.
 #[derive(Debug, Clone)]
-pub struct Target<'a> {
-    profile: &'a Profile,
+pub struct Target {
+    profile: Profile,
     linkage: Linkage,
     starts: u32,
     z_range: (f64, f64),
@@ -131,14 +131,14 @@ pub struct Motion {
     /// Moves at a fixed C.
     still: Vec<Move>,
     c_dir: f64,
+    /// Which way Z goes while C turns; 0 until it has moved.
+    z_dir: f64,
 }
 
 impl Motion {
     /// The motion a controller executes for `program`, from the first fully known position.
     pub fn new(program: &Program) -> Result<Motion, VerifyError> {
-        let mut turning = Vec::new();
-        let mut still = Vec::new();
-        let mut c_dir = 0.0;
+        let mut motion = Motion::empty();
         for step in program.steps(GPose::UNKNOWN) {
             if !matches!(
                 step.block,
@@ -152,7 +152,7 @@ impl Motion {
                 if step.to.x.is_some() && step.to.z.is_some() && step.to.c.is_some() {
                     continue;
                 }
-                if !turning.is_empty() || !still.is_empty() {
+                if !motion.is_empty() {
                     return Err(VerifyError::Unpositioned { block: step.index });
                 }
                 continue;
@@ -160,34 +160,72 @@ impl Motion {
             let (Some(tx), Some(tz), Some(tc)) = (step.to.x, step.to.z, step.to.c) else {
                 return Err(VerifyError::Unpositioned { block: step.index });
             };
-            let m = Move {
-                from: [fx, fz, fc.to_radians()],
-                to: [tx, tz, tc.to_radians()],
-            };
-            let dc = m.to[2] - m.from[2];
-            if dc == 0.0 {
-                still.push(m);
-                continue;
-            }
-            if c_dir == 0.0 {
-                c_dir = dc.signum();
-            } else if dc.signum() != c_dir {
-                return Err(VerifyError::CNotMonotonic { block: step.index });
-            }
-            turning.push(m);
+            motion.push([fx, fz, fc], [tx, tz, tc], step.index)?;
         }
-        if turning.is_empty() {
+        if !motion.is_turning() {
             return Err(VerifyError::NoTurning);
         }
-        let dz: Vec<f64> = turning.iter().map(|m| m.to[1] - m.from[1]).collect();
-        if dz.iter().any(|d| *d > 0.0) && dz.iter().any(|d| *d < 0.0) {
-            return Err(VerifyError::ZNotMonotonic);
+        Ok(motion)
+    }
+
+    /// No motion yet, to [`push`](Motion::push) moves onto as they execute.
+    pub fn empty() -> Motion {
+        Motion {
+            turning: Vec::new(),
+            still: Vec::new(),
+            c_dir: 0.0,
+            z_dir: 0.0,
         }
-        Ok(Motion {
-            turning,
-            still,
-            c_dir,
-        })
+    }
+
+    /// Appends the straight move from `from` to `to` (X, Z in mm, C in degrees); `block`
+    /// names it in errors. C must keep turning one way, and Z keep feeding one way while it
+    /// does.
+    pub fn push(&mut self, from: [f64; 3], to: [f64; 3], block: usize) -> Result<(), VerifyError> {
+        let m = Move {
+            from: [from[0], from[1], from[2].to_radians()],
+            to: [to[0], to[1], to[2].to_radians()],
+        };
+        let dc = m.to[2] - m.from[2];
+        if dc == 0.0 {
+            self.still.push(m);
+            return Ok(());
+        }
+        if self.c_dir == 0.0 {
+            self.c_dir = dc.signum();
+        } else if dc.signum() != self.c_dir {
+            return Err(VerifyError::CNotMonotonic { block });
+        }
+        let dz = m.to[1] - m.from[1];
+        if dz != 0.0 {
+            if self.z_dir == 0.0 {
+                self.z_dir = dz.signum();
+            } else if dz.signum() != self.z_dir {
+                return Err(VerifyError::ZNotMonotonic);
+            }
+        }
+        self.turning.push(m);
+        Ok(())
+    }
+
+    /// No move at all.
+    pub fn is_empty(&self) -> bool {
+        self.turning.is_empty() && self.still.is_empty()
+    }
+
+    /// Some move turns C (only then can a point be measured).
+    pub fn is_turning(&self) -> bool {
+        !self.turning.is_empty()
+    }
+
+    /// Which way Z feeds while C turns (+1, −1; 0 before it has).
+    pub fn z_dir(&self) -> f64 {
+        self.z_dir
+    }
+
+    /// Z where the turning motion is now, if it has begun.
+    pub fn z_now(&self) -> Option<f64> {
+        self.turning.last().map(|m| m.to[1])
     }
 
     /// C range of the turning motion, (low, high).
@@ -212,8 +250,7 @@ impl Motion {
     /// The C at which the turning motion's Z is nearest `z`: Z moves one way with C (checked
     /// in [`Motion::new`]), so a binary search over the moves finds it.
     fn c_at_z(&self, z: f64) -> f64 {
-        let first = &self.turning[0];
-        let z_dir = (self.turning[self.turning.len() - 1].to[1] - first.from[1]).signum();
+        let z_dir = self.z_dir;
         let i = self
             .turning
             .partition_point(|m| (m.to[1] - z) * z_dir < 0.0)
@@ -245,25 +282,44 @@ struct Probe {
 
 /// Where the linkage touches one profile position: the profile point, C and Z of its pose.
 #[derive(Debug, Clone, Copy)]
-struct Seed {
+pub(crate) struct Seed {
     pos: DVec2,
     c: f64,
-    z: f64,
+    /// Z of the pose, relative to the axial position of the point it touches.
+    pub(crate) z: f64,
 }
 
-impl<'a> Target<'a> {
+/// A target point: profile position `k` of a [`Grid`], a start, an axial position.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Sample {
+    pub(crate) k: usize,
+    pub(crate) start: u32,
+    pub(crate) z: f64,
+}
+
+/// The measured points: profile positions, the seeds near each, and every sample.
+#[derive(Debug, Clone)]
+pub(crate) struct Grid {
+    positions: Vec<DVec2>,
+    /// The seeds of each position's search.
+    pub(crate) near: Vec<Vec<Seed>>,
+    /// Every point, position by position, start by start, z ascending.
+    pub(crate) samples: Vec<Sample>,
+}
+
+impl Target {
     /// The groove of `profile` (one period, `starts` starts, lead parameter and ring in
     /// `linkage`) formed over `z_range`, cut at `feed` mm per workpiece revolution (which sets
     /// the axial sampling). Every sample of the linkage table becomes a seed: the table is
     /// dense where X(ψ) bends, so a sharp edge's fan of normals is well covered.
     pub fn new(
-        profile: &'a Profile,
+        profile: Profile,
         linkage: Linkage,
         starts: u32,
         z_range: (f64, f64),
         feed: f64,
-    ) -> Result<Target<'a>, VerifyError> {
-        let table = Table::build(profile, &linkage, 1e-4)
+    ) -> Result<Target, VerifyError> {
+        let table = Table::build(&profile, &linkage, 1e-4)
             .map_err(|e| VerifyError::Seed { why: e.to_string() })?;
         let seeds = table
             .samples
@@ -304,52 +360,72 @@ impl<'a> Target<'a> {
         (0..=n).map(|k| a + step * k as f64).collect()
     }
 
-    /// Measure `motion` over the whole groove.
-    pub fn measure(&self, motion: &Motion) -> Result<Measurement, VerifyError> {
-        let seeds = &self.seeds;
-        let zs = self.z_samples();
+    /// The points measured, with the seeds of their searches.
+    pub(crate) fn grid(&self) -> Grid {
         let positions: Vec<DVec2> = (0..PROFILE_SAMPLES)
             .map(|k| {
                 let u = self.profile.length() * (k as f64 + 0.5) / PROFILE_SAMPLES as f64;
                 self.profile.point(u).pos
             })
             .collect();
-        let jobs: Vec<(usize, u32)> = (0..positions.len())
-            .flat_map(|k| (0..self.starts).map(move |s| (k, s)))
+        let near: Vec<Vec<Seed>> = positions
+            .iter()
+            .map(|&pos| near_seeds(&self.seeds, pos))
             .collect();
+        let zs = self.z_samples();
+        let samples = (0..positions.len())
+            .flat_map(|k| (0..self.starts).map(move |start| (k, start)))
+            .flat_map(|(k, start)| zs.iter().map(move |&z| Sample { k, start, z }))
+            .collect();
+        Grid {
+            positions,
+            near,
+            samples,
+        }
+    }
+
+    /// The error at one point of `grid`.
+    pub(crate) fn point_error(&self, grid: &Grid, s: Sample, motion: &Motion) -> PointError {
+        let pos = grid.positions[s.k];
+        let probe = self.probe(pos, s.start, s.z);
+        PointError {
+            at: probe.q.to_array(),
+            profile_point: pos.to_array(),
+            start: s.start,
+            error_mm: self.error_at(&probe, &grid.near[s.k], motion),
+        }
+    }
+
+    /// The feed per workpiece revolution, mm.
+    pub(crate) fn feed(&self) -> f64 {
+        self.feed
+    }
+
+    /// Measure `motion` over the whole groove.
+    pub fn measure(&self, motion: &Motion) -> Result<Measurement, VerifyError> {
+        let grid = self.grid();
         let threads = std::thread::available_parallelism()
             .map_or(1, |n| n.get())
             .min(8);
-        let chunk = jobs.len().div_ceil(threads).max(1);
-        let results: Vec<Vec<PointError>> = std::thread::scope(|scope| {
-            let handles: Vec<_> = jobs
+        let chunk = grid.samples.len().div_ceil(threads).max(1);
+        let all: Vec<PointError> = std::thread::scope(|scope| {
+            let handles: Vec<_> = grid
+                .samples
                 .chunks(chunk)
                 .map(|part| {
-                    let (zs, positions) = (&zs, &positions);
+                    let grid = &grid;
                     scope.spawn(move || {
-                        let mut out = Vec::with_capacity(part.len() * zs.len());
-                        for &(k, start) in part {
-                            let near = near_seeds(seeds, positions[k]);
-                            for &z in zs {
-                                let probe = self.probe(positions[k], start, z);
-                                out.push(PointError {
-                                    at: probe.q.to_array(),
-                                    profile_point: positions[k].to_array(),
-                                    start,
-                                    error_mm: self.error_at(&probe, &near, motion),
-                                });
-                            }
-                        }
-                        out
+                        part.iter()
+                            .map(|&s| self.point_error(grid, s, motion))
+                            .collect::<Vec<_>>()
                     })
                 })
                 .collect();
             handles
                 .into_iter()
-                .map(|h| h.join().expect("a measuring thread panicked"))
+                .flat_map(|h| h.join().expect("a measuring thread panicked"))
                 .collect()
         });
-        let all: Vec<PointError> = results.into_iter().flatten().collect();
         summarise(&all)
     }
 
@@ -409,7 +485,7 @@ impl<'a> Target<'a> {
     }
 }
 
-impl Target<'_> {
+impl Target {
     /// The axial section (polar angle 0) over one axial pitch centred on `z_centre`, within
     /// the formed length: the target, and the machined section drawn as the target moved by
     /// the measured error, magnified `magnify` times, along the surface normal (undercut

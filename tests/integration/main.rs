@@ -2,6 +2,7 @@
 
 mod cli;
 mod linkage;
+mod python_client;
 mod sim;
 mod stream;
 mod sweep;

@@ -224,7 +224,7 @@ fn engine_agrees(job: &Job, profile: &Profile, program: &Program, brute: &Measur
     };
     let z_range = (job.groove.z_start, job.groove.z_start + job.groove.length);
     let target = Target::new(
-        profile,
+        profile.clone(),
         linkage,
         job.groove.starts,
         z_range,

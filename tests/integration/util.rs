@@ -39,3 +39,14 @@ pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     std::fs::write(&path, text).expect("write a test file");
     path
 }
+
+/// A program line without its N word (grblHAL programs number every line).
+pub fn block(line: &str) -> &str {
+    match line.strip_prefix('N') {
+        Some(rest) => {
+            let digits = rest.len() - rest.trim_start_matches(|c: char| c.is_ascii_digit()).len();
+            rest[digits..].trim_start()
+        }
+        None => line,
+    }
+}

@@ -94,7 +94,7 @@ fn a_stretch_thirty_microns_off_is_seen_where_it_is() {
             }
             match word('X') {
                 Some(x)
-                    if line.starts_with("G1")
+                    if util::block(line).starts_with("G1")
                         && line.contains('F')
                         && (-2.0..=2.0).contains(&last_z) =>
                 {

@@ -1,5 +1,7 @@
 //! The simulated controller (crate `whirl-sim`) as whirl embeds it: its machine description
-//! from a whirl machine profile.
+//! from a whirl machine profile, and its Δ guard ([`guard`]) from a job.
+
+pub mod guard;
 
 use crate::machine::{MachineProfile, NumberType};
 use whirl_sim::machine::{Axis, Machine, Number};

@@ -1,0 +1,280 @@
+//! `whirl dry-run`: a planned job streamed to the simulated controller before it goes near
+//! metal.
+//!
+//! The simulator runs in this process but behind a real pseudo-terminal, and the program
+//! goes through the same serial code a machine gets ([`transport::stream_port`]): the machine
+//! check before the first byte, character counting, status polling, the executed-path log.
+//! The simulator's Δ guard ([`simulator::guard`]) measures what it executes and raises
+//! `ALARM:64` as soon as the profile error exceeds Δ; every move it executes is written to
+//! the same log as the streamer's events. Its clock runs as fast as the host allows unless
+//! a time scale is given, so a job of hours dry-runs in seconds; the link's byte rate is
+//! emulated in simulated time either way, so its utilisation is what the real link's would
+//! be.
+
+use crate::check::CheckError;
+use crate::exec_log::{self, ExecLog, LogError};
+use crate::job::Job;
+use crate::machine::MachineProfile;
+use crate::protocol::codes::alarm_message;
+use crate::simulator::{self, guard::DeltaGuard};
+use crate::transport::{self, link_utilization, StreamError, StreamOptions, StreamOutcome};
+use serde::Serialize;
+use std::time::{Duration, Instant};
+use tokio_serial::SerialPort;
+use whirl_sim::serve::{serve, ServeOptions};
+use whirl_sim::{Controller, ControllerOptions, Event, MoveKind};
+
+/// Simulated seconds per step when the clock runs as fast as it can: fine enough for the
+/// 5 Hz status polls and the emulated link (at 115 200 baud, 58 bytes a step).
+const FAST_STEP_S: f64 = 0.005;
+
+/// How a dry run runs.
+#[derive(Debug, Clone)]
+pub struct DryRunOptions {
+    /// Simulated seconds per wall second; `None`: as fast as the host allows.
+    pub time_scale: Option<f64>,
+    /// The link's baud rate, emulated in simulated time.
+    pub baud: u32,
+    /// The simulated controller's receive buffer, bytes.
+    pub rx_size: usize,
+    /// Give up (with a feed hold) after this long without progress, wall time.
+    pub stall_timeout: Duration,
+}
+
+impl Default for DryRunOptions {
+    fn default() -> DryRunOptions {
+        DryRunOptions {
+            time_scale: None,
+            baud: 115_200,
+            rx_size: 1024,
+            stall_timeout: Duration::from_secs(30),
+        }
+    }
+}
+
+/// An alarm the simulator raised.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AlarmReport {
+    /// `ALARM:N`.
+    pub code: u16,
+    /// grbl's meaning of it.
+    pub message: String,
+    /// What the Δ guard found, for `ALARM:64`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub detail: Option<String>,
+}
+
+/// What `whirl dry-run --report` writes.
+#[derive(Debug, Clone, Serialize)]
+pub struct DryRunReport {
+    /// The job (or program) that was run.
+    pub job: String,
+    /// Every line acknowledged and executed, no alarm, and the whole groove measured
+    /// within Δ.
+    pub within_delta: bool,
+    /// The stream completed (every line acknowledged, the motion finished).
+    pub completed: bool,
+    /// Program lines.
+    pub lines: usize,
+    /// Program lines acknowledged `ok`.
+    pub lines_acked: usize,
+    /// How the stream ended, when it did not complete.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stop: Option<String>,
+    /// The simulated machine's time, s: what the job takes on the machine.
+    pub simulated_time_s: f64,
+    /// Wall time of the dry run, s.
+    pub wall_time_s: f64,
+    /// The link's baud rate.
+    pub baud: u32,
+    /// Bytes sent × 10 bits over what the link carries until the last line is answered
+    /// (simulated time): how busy the real link will be, 0 to 1.
+    pub link_utilization: f64,
+    /// The larger of the measured overcut and undercut, mm.
+    pub max_error_mm: f64,
+    /// Largest overcut the simulator measured, mm.
+    pub max_overcut_mm: f64,
+    /// Largest undercut the simulator measured, mm.
+    pub max_undercut_mm: f64,
+    /// Δ, mm.
+    pub delta_mm: f64,
+    /// Target points measured.
+    pub points_measured: usize,
+    /// Target points of the groove.
+    pub points: usize,
+    /// Alarms the simulator raised, in order.
+    pub alarms: Vec<AlarmReport>,
+}
+
+/// Why a dry run could not be carried out (a run that stops or exceeds Δ is not an error:
+/// it is in the report).
+#[derive(Debug, thiserror::Error)]
+pub enum DryRunError {
+    /// The job's groove cannot be measured.
+    #[error("the simulator's Δ guard: {0}")]
+    Guard(#[from] CheckError),
+    /// The simulated controller cannot be built for the machine.
+    #[error("the simulated controller: {0}")]
+    Controller(#[from] whirl_sim::ConfigError),
+    /// No pseudo-terminal.
+    #[error("cannot open a pseudo-terminal for the simulator: {0}")]
+    Pty(#[source] tokio_serial::Error),
+    /// Streaming failed (including the machine check, before anything was sent).
+    #[error(transparent)]
+    Stream(#[from] StreamError),
+    /// The simulator stopped serving mid-run.
+    #[error("the simulator stopped mid-run: {0}")]
+    Simulator(std::io::Error),
+    /// The executed-path log.
+    #[error("executed-path log: {0}")]
+    Log(#[from] LogError),
+}
+
+/// What the simulator side collects while it serves.
+struct SimSide {
+    log: ExecLog,
+    started: Instant,
+    /// Simulated time of the last line answered.
+    last_answer: f64,
+    alarms: Vec<AlarmReport>,
+    log_error: Option<LogError>,
+}
+
+impl SimSide {
+    fn on_event(&mut self, event: &Event) {
+        let logged = match event {
+            Event::Line { time, .. } => {
+                self.last_answer = *time;
+                None
+            }
+            Event::Executed(block) => Some(exec_log::Event::Executed {
+                line: block.n.map(|n| n as usize),
+                times: [block.start_time, block.end_time],
+                from: block.from.to_array(),
+                to: block.to.to_array(),
+                rapid: block.kind == MoveKind::Rapid,
+            }),
+            Event::Alarm { alarm, breach, .. } => {
+                let code = u16::from(alarm.code());
+                self.alarms.push(AlarmReport {
+                    code,
+                    message: alarm_message(code).to_owned(),
+                    detail: breach.as_ref().map(|b| b.message.clone()),
+                });
+                breach.as_ref().map(|b| exec_log::Event::Message {
+                    text: format!("simulator: {}", b.message),
+                })
+            }
+            Event::RxOverflow { dropped, .. } => Some(exec_log::Event::Message {
+                text: format!("simulator: RX buffer overflow, {dropped} bytes dropped"),
+            }),
+            Event::Reset { .. } | Event::State { .. } => None,
+        };
+        if let Some(e) = logged {
+            let t = self.started.elapsed().as_secs_f64();
+            if let Err(error) = self.log.write(t, e) {
+                self.log_error.get_or_insert(error);
+            }
+        }
+    }
+}
+
+/// Dry-runs `lines` (the program planned for `job` on `machine`) on the simulator, logging
+/// to `log`. `program` names it in the log and the report.
+pub async fn dry_run(
+    job: &Job,
+    machine: &MachineProfile,
+    program: &str,
+    lines: Vec<String>,
+    options: &DryRunOptions,
+    log: &mut ExecLog,
+) -> Result<DryRunReport, DryRunError> {
+    // Refused before the simulator exists, as a machine would be left untouched.
+    transport::check_program(&lines, machine).map_err(StreamError::from)?;
+    let guard = DeltaGuard::new(job, machine)?;
+    let points = guard.points();
+    let mut controller = Controller::new(
+        &simulator::machine(machine),
+        ControllerOptions {
+            rx_buffer_size: options.rx_size,
+            ..ControllerOptions::default()
+        },
+    )?;
+    controller.set_guard(Box::new(guard));
+    // Booted long before the port opened, as a board on a USB link is: no banner waiting.
+    controller.take_output();
+    let (master, slave) = tokio_serial::SerialStream::pair().map_err(DryRunError::Pty)?;
+    let device = slave
+        .name()
+        .ok_or_else(|| DryRunError::Simulator(std::io::Error::other("the pty has no name")))?;
+    let started = Instant::now();
+    let mut sim = SimSide {
+        log: log.clone(),
+        started,
+        last_answer: 0.0,
+        alarms: Vec::new(),
+        log_error: None,
+    };
+    let serve_options = ServeOptions {
+        time_scale: options.time_scale,
+        fast_step: FAST_STEP_S,
+        baud: Some(options.baud),
+        ..ServeOptions::default()
+    };
+    let total = lines.len();
+    let stream_options = StreamOptions {
+        program: program.to_owned(),
+        baud: Some(options.baud),
+        no_progress_timeout: Some(options.stall_timeout),
+        ..StreamOptions::default()
+    };
+    let outcome: StreamOutcome = {
+        let served = serve(master, &mut controller, serve_options, |e| sim.on_event(e));
+        let streamed = transport::stream_port(&device, options.baud, lines, stream_options, log);
+        tokio::pin!(served, streamed);
+        tokio::select! {
+            outcome = &mut streamed => outcome?,
+            ended = &mut served => {
+                let why = ended.err().unwrap_or_else(|| std::io::Error::other("link closed"));
+                return Err(DryRunError::Simulator(why));
+            }
+        }
+    };
+    drop(slave);
+    if let Some(error) = sim.log_error {
+        return Err(error.into());
+    }
+    let measured = controller
+        .guard()
+        .map(|g| g.measured())
+        .expect("the guard was set above");
+    let completed = outcome.completed();
+    let within_delta = completed
+        && sim.alarms.is_empty()
+        && measured.points == points
+        && measured.max_error_mm() <= measured.delta_mm;
+    Ok(DryRunReport {
+        job: program.to_owned(),
+        within_delta,
+        completed,
+        lines: total,
+        lines_acked: outcome.lines_acked,
+        stop: (!completed).then(|| format!("{:?}", outcome.ending)),
+        simulated_time_s: controller.now(),
+        wall_time_s: started.elapsed().as_secs_f64(),
+        baud: options.baud,
+        link_utilization: link_utilization(
+            outcome.bytes_written,
+            options.baud,
+            Duration::from_secs_f64(sim.last_answer),
+        )
+        .unwrap_or(0.0),
+        max_error_mm: measured.max_error_mm(),
+        max_overcut_mm: measured.max_overcut_mm,
+        max_undercut_mm: measured.max_undercut_mm,
+        delta_mm: measured.delta_mm,
+        points_measured: measured.points,
+        points,
+        alarms: sim.alarms,
+    })
+}

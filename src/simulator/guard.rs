@@ -1,0 +1,304 @@
+//! The simulator's Δ guard: the profile error of the motion the simulated controller
+//! actually executed, measured with the swept-volume engine while it executes.
+//!
+//! The target points are those `whirl verify` measures ([`crate::sweep::verify`]). A point's
+//! error is final once the motion has gone past every pose that could still cut it: the
+//! search around a point reaches one workpiece revolution beyond the poses of the profile
+//! positions near it, so once the turning motion's Z is more than that (1.25 feeds, with the
+//! search window and a margin) past the furthest of those poses, the point is measured, and
+//! a point beyond Δ stops the machine at once. What is still open when the program ends is
+//! measured then. The alarm so comes within about a revolution and a quarter of the cut that
+//! caused it, which is as soon as the error is known: an undercut is only an undercut once
+//! nothing more will pass.
+//!
+//! Rapids are positioning, not cutting: the planner keeps them clear of the work (the
+//! lead-in and lead-out), so the guard judges the feed moves. Any feed move that turns C the
+//! other way, or feeds Z back while C turns, cannot be measured and is itself a breach.
+
+use crate::check::{self, CheckError};
+use crate::job::Job;
+use crate::machine::MachineProfile;
+use crate::sweep::verify::{Grid, Motion, PointError, Sample, Target};
+use std::collections::VecDeque;
+use whirl_sim::{Breach, ExecutedBlock, Guard, Measured, MoveKind};
+
+/// How far past the furthest seeding pose, in feeds per revolution, the motion must be
+/// before a point's error is final: one revolution of search, its ±6° window, and a margin.
+const SETTLE_FEEDS: f64 = 1.25;
+
+/// A Δ guard for one job (see the module docs).
+#[derive(Debug)]
+pub struct DeltaGuard {
+    target: Target,
+    grid: Grid,
+    motion: Motion,
+    delta: f64,
+    /// X words are diameters: the motion's X is half of them.
+    x_diameter: bool,
+    /// For each profile position of the grid, the lowest and highest Z offset of the poses
+    /// that seed its search.
+    reach: Vec<(f64, f64)>,
+    /// Points not yet final; ordered by when the feed settles them once Z's direction is
+    /// known.
+    open: VecDeque<Sample>,
+    ordered: bool,
+    measured: Measured,
+    worst_overcut: Option<PointError>,
+    worst_undercut: Option<PointError>,
+}
+
+impl DeltaGuard {
+    /// A guard for `job`'s groove on `machine` (whose X mode says how to read X).
+    pub fn new(job: &Job, machine: &MachineProfile) -> Result<DeltaGuard, CheckError> {
+        let target = check::target(job)?;
+        let grid = target.grid();
+        let reach = grid
+            .near
+            .iter()
+            .map(|seeds| {
+                seeds
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |r, s| {
+                        (r.0.min(s.z), r.1.max(s.z))
+                    })
+            })
+            .collect();
+        let open = grid.samples.iter().copied().collect();
+        Ok(DeltaGuard {
+            target,
+            grid,
+            motion: Motion::empty(),
+            delta: job.cut.delta,
+            x_diameter: machine.x_diameter(),
+            reach,
+            open,
+            ordered: false,
+            measured: Measured {
+                delta_mm: job.cut.delta,
+                ..Measured::default()
+            },
+            worst_overcut: None,
+            worst_undercut: None,
+        })
+    }
+
+    /// The target points of the groove: all of them are measured by the program's end.
+    pub fn points(&self) -> usize {
+        self.grid.samples.len()
+    }
+
+    /// The worst overcut and undercut found so far, with where they are.
+    pub fn worst(&self) -> (Option<PointError>, Option<PointError>) {
+        (self.worst_overcut, self.worst_undercut)
+    }
+
+    /// The Z past which the turning motion must be for `s` to be final, in the feed's
+    /// direction `dir`.
+    fn settles_at(&self, s: &Sample, dir: f64) -> f64 {
+        let (lo, hi) = self.reach[s.k];
+        let furthest = if dir > 0.0 { hi } else { lo };
+        s.z + furthest + dir * SETTLE_FEEDS * self.target.feed()
+    }
+
+    /// Measure one point; a breach if it is beyond Δ.
+    fn settle(&mut self, s: Sample) -> Result<(), Breach> {
+        let e = self.target.point_error(&self.grid, s, &self.motion);
+        self.measured.points += 1;
+        if -e.error_mm > self.measured.max_overcut_mm {
+            self.measured.max_overcut_mm = -e.error_mm;
+            self.worst_overcut = Some(e);
+        }
+        if e.error_mm > self.measured.max_undercut_mm {
+            self.measured.max_undercut_mm = e.error_mm;
+            self.worst_undercut = Some(e);
+        }
+        if e.error_mm.abs() <= self.delta {
+            return Ok(());
+        }
+        let [x, y, z] = e.at;
+        let [px, py] = e.profile_point;
+        Err(Breach {
+            message: format!(
+                "profile error {:.4} mm {} beyond delta {} mm at X{x:.3} Y{y:.3} Z{z:.3} \
+                 (start {}, profile point {px:.3},{py:.3})",
+                e.error_mm.abs(),
+                if e.error_mm < 0.0 {
+                    "overcut"
+                } else {
+                    "undercut"
+                },
+                self.delta,
+                e.start + 1,
+            ),
+        })
+    }
+}
+
+impl Guard for DeltaGuard {
+    fn executed(&mut self, block: &ExecutedBlock) -> Result<(), Breach> {
+        if block.kind == MoveKind::Rapid {
+            return Ok(());
+        }
+        let scale = if self.x_diameter { 0.5 } else { 1.0 };
+        let at = |p: whirl_sim::Position| [p.x * scale, p.z, p.c];
+        self.motion
+            .push(at(block.from), at(block.to), block.line as usize)
+            .map_err(|e| Breach {
+                message: format!("the motion of line {} cannot be measured: {e}", block.line),
+            })?;
+        let dir = self.motion.z_dir();
+        if dir == 0.0 {
+            return Ok(());
+        }
+        if !self.ordered {
+            let mut open: Vec<Sample> = self.open.drain(..).collect();
+            open.sort_by(|a, b| {
+                (dir * self.settles_at(a, dir)).total_cmp(&(dir * self.settles_at(b, dir)))
+            });
+            self.open = open.into();
+            self.ordered = true;
+        }
+        let Some(z_now) = self.motion.z_now() else {
+            return Ok(());
+        };
+        while let Some(&s) = self.open.front() {
+            if dir * (z_now - self.settles_at(&s, dir)) <= 0.0 {
+                break;
+            }
+            self.open.pop_front();
+            self.settle(s)?;
+        }
+        Ok(())
+    }
+
+    fn program_end(&mut self) -> Result<(), Breach> {
+        if self.open.is_empty() {
+            return Ok(());
+        }
+        if !self.motion.is_turning() {
+            return Err(Breach {
+                message: format!(
+                    "the program ended without turning C: none of the groove's {} points \
+                     was cut",
+                    self.open.len()
+                ),
+            });
+        }
+        while let Some(s) = self.open.pop_front() {
+            self.settle(s)?;
+        }
+        Ok(())
+    }
+
+    fn measured(&self) -> Measured {
+        self.measured
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simulator::machine;
+    use whirl_sim::{Controller, ControllerOptions, MachineState};
+
+    fn example(name: &str) -> Job {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("examples")
+            .join(name)
+            .join("job.toml");
+        Job::load(&path).expect("the example loads")
+    }
+
+    /// Runs `text` on a simulated controller guarded for `job`, feeding lines as its RX
+    /// buffer has room; returns everything it printed and the controller.
+    fn run(job: &Job, text: &str) -> (String, Controller) {
+        let profile = MachineProfile::builtin_sim().unwrap();
+        let mut sim = Controller::new(&machine(&profile), ControllerOptions::default()).unwrap();
+        sim.set_guard(Box::new(DeltaGuard::new(job, &profile).unwrap()));
+        let mut out = String::from_utf8(sim.take_output()).unwrap();
+        let mut stopped = false;
+        for line in text.lines() {
+            while sim.rx_free() < line.len() + 1 && sim.state() != MachineState::Alarm {
+                sim.advance(0.1).unwrap();
+            }
+            if sim.state() == MachineState::Alarm {
+                stopped = true;
+                break;
+            }
+            sim.receive(format!("{line}\n").as_bytes());
+        }
+        while !stopped && sim.state() != MachineState::Alarm && !out_has_end(&sim, &out) {
+            sim.advance(0.1).unwrap();
+            out.push_str(&String::from_utf8(sim.take_output()).unwrap());
+        }
+        out.push_str(&String::from_utf8(sim.take_output()).unwrap());
+        (out, sim)
+    }
+
+    fn out_has_end(sim: &Controller, out: &str) -> bool {
+        out.contains("[MSG:Pgm End]") && sim.state() == MachineState::Idle
+    }
+
+    #[test]
+    fn a_planned_program_runs_within_delta_and_every_point_is_measured() {
+        let job = example("trapezoidal");
+        let profile = MachineProfile::builtin_sim().unwrap();
+        let plan = crate::plan::plan(&job, &profile).unwrap();
+        let (out, sim) = run(&job, &plan.text);
+        assert!(!out.contains("ALARM"), "{out}");
+        assert!(out.contains("[MSG:Pgm End]"));
+        let m = sim.guard().unwrap().measured();
+        let target = check::target(&job).unwrap();
+        assert_eq!(m.points, target.grid().samples.len());
+        assert!(m.max_error_mm() <= job.cut.delta, "{m:?}");
+        // What the guard measured on the executed motion is what `whirl verify` measures on
+        // the program: the same engine, the motion differing by the controller's 32-bit
+        // positions, which the planner's rounding share bounds.
+        let v = check::verify(&job, &profile, &plan.text, false).unwrap();
+        let held = plan.report.rounding_mm;
+        assert!(
+            (m.max_overcut_mm - v.max_overcut_mm).abs() <= held,
+            "{m:?} {v:?}"
+        );
+        assert!(
+            (m.max_undercut_mm - v.max_undercut_mm).abs() <= held,
+            "{m:?} {v:?}"
+        );
+    }
+
+    #[test]
+    fn a_program_that_stops_short_trips_at_its_end_with_the_undercut_it_left() {
+        let job = example("trapezoidal");
+        let profile = MachineProfile::builtin_sim().unwrap();
+        let plan = crate::plan::plan(&job, &profile).unwrap();
+        // The lead-in and the first few hundred linked moves, then the retract and the end.
+        let mut lines: Vec<&str> = plan.text.lines().take(300).collect();
+        lines.extend(["G94", "G0 X0", "M5", "M2"]);
+        let (out, sim) = run(&job, &lines.join("\n"));
+        let alarm = out.find("ALARM:64").expect("the guard trips");
+        assert!(
+            out[alarm..].contains("undercut beyond delta 0.01 mm"),
+            "{out}"
+        );
+        // It tripped at the end: every line before M2 was answered ok, M2 error:9.
+        let answers: Vec<&str> = out
+            .lines()
+            .filter(|l| *l == "ok" || l.starts_with("error:"))
+            .collect();
+        assert_eq!(answers.len(), lines.len());
+        assert!(answers[..lines.len() - 1].iter().all(|a| *a == "ok"));
+        assert_eq!(answers[lines.len() - 1], "error:9");
+        assert!(sim.guard().unwrap().measured().max_undercut_mm > job.cut.delta);
+    }
+
+    #[test]
+    fn a_feed_turning_c_back_cannot_be_measured_and_trips() {
+        let job = example("trapezoidal");
+        let program = "G21 G90 G94\nG1 X5 C10 F500\nG1 X5 C5\nM2";
+        let (out, _) = run(&job, program);
+        assert!(
+            out.contains("[MSG:the motion of line 3 cannot be measured: C turns both ways"),
+            "{out}"
+        );
+    }
+}
