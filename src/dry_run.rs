@@ -17,7 +17,9 @@ use crate::job::Job;
 use crate::machine::MachineProfile;
 use crate::protocol::codes::alarm_message;
 use crate::simulator::{self, guard::DeltaGuard};
-use crate::transport::{self, link_utilization, StreamError, StreamOptions, StreamOutcome};
+use crate::transport::{
+    self, link_utilization, ProgressFn, StreamError, StreamOptions, StreamOutcome,
+};
 use serde::Serialize;
 use std::time::{Duration, Instant};
 use tokio_serial::SerialPort;
@@ -29,7 +31,6 @@ use whirl_sim::{Controller, ControllerOptions, Event, MoveKind};
 const FAST_STEP_S: f64 = 0.005;
 
 /// How a dry run runs.
-#[derive(Debug, Clone)]
 pub struct DryRunOptions {
     /// Simulated seconds per wall second; `None`: as fast as the host allows.
     pub time_scale: Option<f64>,
@@ -39,6 +40,8 @@ pub struct DryRunOptions {
     pub rx_size: usize,
     /// Give up (with a feed hold) after this long without progress, wall time.
     pub stall_timeout: Duration,
+    /// Progress as the stream goes, for a display.
+    pub on_progress: Option<ProgressFn>,
 }
 
 impl Default for DryRunOptions {
@@ -48,6 +51,7 @@ impl Default for DryRunOptions {
             baud: 115_200,
             rx_size: 1024,
             stall_timeout: Duration::from_secs(30),
+            on_progress: None,
         }
     }
 }
@@ -186,7 +190,7 @@ pub async fn dry_run(
     machine: &MachineProfile,
     program: &str,
     lines: Vec<String>,
-    options: &DryRunOptions,
+    options: DryRunOptions,
     log: &mut ExecLog,
 ) -> Result<DryRunReport, DryRunError> {
     // Refused before the simulator exists, as a machine would be left untouched.
@@ -226,6 +230,7 @@ pub async fn dry_run(
         program: program.to_owned(),
         baud: Some(options.baud),
         no_progress_timeout: Some(options.stall_timeout),
+        on_progress: options.on_progress,
         ..StreamOptions::default()
     };
     let outcome: StreamOutcome = {

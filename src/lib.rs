@@ -92,6 +92,47 @@ pub mod sweep;
 pub mod table;
 pub mod transport;
 
+/// An error and its causes as one line, for the command lines. Errors here carry their
+/// cause's text in their own message (so `to_string` alone says everything); a cause whose
+/// text is already there is not repeated.
+pub fn error_message(error: &(dyn std::error::Error + 'static)) -> String {
+    let mut message = error.to_string();
+    let mut cause = error.source();
+    while let Some(c) = cause {
+        let text = c.to_string();
+        if !message.contains(&text) {
+            message.push_str(": ");
+            message.push_str(&text);
+        }
+        cause = c.source();
+    }
+    message
+}
+
+#[cfg(test)]
+mod tests {
+    /// An error whose message carries its cause's text, and one whose message does not.
+    #[derive(Debug, thiserror::Error)]
+    enum Outer {
+        #[error("cannot read the job: {0}")]
+        Carries(#[source] std::io::Error),
+        #[error("cannot plan")]
+        Plain(#[source] std::io::Error),
+    }
+
+    #[test]
+    fn a_cause_is_said_once() {
+        let io = || std::io::Error::other("no such file");
+        let carries = Outer::Carries(io());
+        assert_eq!(
+            super::error_message(&carries),
+            "cannot read the job: no such file"
+        );
+        let plain = Outer::Plain(io());
+        assert_eq!(super::error_message(&plain), "cannot plan: no such file");
+    }
+}
+
 /// Shapes shared by the unit tests.
 #[cfg(test)]
 pub(crate) mod testing {

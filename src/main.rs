@@ -72,6 +72,10 @@ enum Command {
     DryRun {
         /// The job file (TOML).
         job: PathBuf,
+        /// Stream this program instead of the job's planned one (a hand-edited program, say);
+        /// it is still measured against the job's groove.
+        #[arg(long)]
+        program: Option<PathBuf>,
         /// Machine profile; default: the built-in simulator's.
         #[arg(long)]
         machine: Option<PathBuf>,
@@ -178,7 +182,7 @@ fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", whirl::error_message(e.as_ref()));
             ExitCode::FAILURE
         }
     }
@@ -273,10 +277,12 @@ fn run(cli: Cli) -> Result<ExitCode> {
             };
             let lines: Vec<String> = text.lines().map(str::to_owned).collect();
             let mut exec_log = whirl::exec_log::ExecLog::append(&log)?;
+            let bar = progress_bar(lines.len());
             let options = whirl::transport::StreamOptions {
                 program: input.display().to_string(),
                 machine: Some(machine),
                 no_progress_timeout: Some(std::time::Duration::from_secs_f64(stall_timeout)),
+                on_progress: bar.as_ref().map(Progress::callback),
                 ..Default::default()
             };
             let runtime = tokio::runtime::Builder::new_current_thread()
@@ -288,7 +294,11 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 lines,
                 options,
                 &mut exec_log,
-            ))?;
+            ));
+            if let Some(bar) = bar {
+                bar.finish();
+            }
+            let outcome = outcome?;
             println!(
                 "{}: {} of {} lines acknowledged in {:.1} s{}",
                 input.display(),
@@ -311,6 +321,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         }
         Command::DryRun {
             job: job_path,
+            program,
             machine,
             log,
             report,
@@ -320,17 +331,30 @@ fn run(cli: Cli) -> Result<ExitCode> {
         } => {
             let machine = load_machine(machine.as_deref())?;
             let job = Job::load(&job_path)?;
-            let plan = whirl::plan::plan(&job, &machine)
-                .with_context(|| format!("cannot plan {}", job_name(&job)))?;
-            let lines: Vec<String> = plan.text.lines().map(str::to_owned).collect();
+            let (name, text) = match &program {
+                Some(path) => (
+                    path.display().to_string(),
+                    std::fs::read_to_string(path)
+                        .with_context(|| format!("cannot read {}", path.display()))?,
+                ),
+                None => (
+                    job_path.display().to_string(),
+                    whirl::plan::plan(&job, &machine)
+                        .with_context(|| format!("cannot plan {}", job_name(&job)))?
+                        .text,
+                ),
+            };
+            let lines: Vec<String> = text.lines().map(str::to_owned).collect();
             let mut exec_log = match &log {
                 Some(path) => whirl::exec_log::ExecLog::append(path)?,
                 None => whirl::exec_log::ExecLog::discard(),
             };
+            let bar = progress_bar(lines.len());
             let options = whirl::dry_run::DryRunOptions {
                 time_scale: time_scale.filter(|s| *s > 0.0),
                 baud,
                 rx_size: rx,
+                on_progress: bar.as_ref().map(Progress::callback),
                 ..Default::default()
             };
             let runtime = tokio::runtime::Builder::new_current_thread()
@@ -339,11 +363,15 @@ fn run(cli: Cli) -> Result<ExitCode> {
             let r = runtime.block_on(whirl::dry_run::dry_run(
                 &job,
                 &machine,
-                &job_path.display().to_string(),
+                &name,
                 lines,
-                &options,
+                options,
                 &mut exec_log,
-            ))?;
+            ));
+            if let Some(bar) = bar {
+                bar.finish();
+            }
+            let r = r?;
             let json = serde_json::to_string_pretty(&r)?;
             write_all(&[(report.as_deref(), &json)])?;
             println!(
@@ -443,6 +471,46 @@ fn run(cli: Cli) -> Result<ExitCode> {
             })
         }
     }
+}
+
+/// A progress bar with the ETA on a terminal (stderr), fed by the streamer's progress.
+struct Progress(indicatif::ProgressBar);
+
+impl Progress {
+    fn callback(&self) -> whirl::transport::ProgressFn {
+        let bar = self.0.clone();
+        Box::new(move |p: &whirl::transport::StreamProgress| {
+            bar.set_position(p.acked as u64);
+            let state = p.state.as_ref().map_or(String::new(), |s| format!("{s:?}"));
+            let eta = p.eta.map_or(String::new(), |d| {
+                format!(", {} left", indicatif::HumanDuration(d))
+            });
+            let tail = if p.all_acked {
+                ", waiting for the last moves"
+            } else {
+                ""
+            };
+            bar.set_message(format!("{state}{eta}{tail}"));
+        })
+    }
+
+    fn finish(self) {
+        self.0.finish_and_clear();
+    }
+}
+
+/// `Some` only when stderr is a terminal: logs and pipes get no bar.
+fn progress_bar(lines: usize) -> Option<Progress> {
+    use std::io::IsTerminal;
+    if !std::io::stderr().is_terminal() {
+        return None;
+    }
+    let bar = indicatif::ProgressBar::new(lines as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} lines, {elapsed} {msg}")
+            .expect("a valid template"),
+    );
+    Some(Progress(bar))
 }
 
 fn job_name(job: &Job) -> String {

@@ -23,6 +23,9 @@ pub struct ServeOptions {
     pub tick: Duration,
     /// Emulated link rate, bits per second (10 bits a byte); `None`: unlimited.
     pub baud: Option<u32>,
+    /// Stop serving (Ok) after this much wall time without a byte from the client; `None`:
+    /// serve until the client closes the stream.
+    pub idle_exit: Option<Duration>,
 }
 
 impl Default for ServeOptions {
@@ -32,11 +35,13 @@ impl Default for ServeOptions {
             fast_step: 0.005,
             tick: Duration::from_millis(2),
             baud: None,
+            idle_exit: None,
         }
     }
 }
 
-/// Serve `controller` on `stream` until the other side closes it (Ok) or the link fails.
+/// Serve `controller` on `stream` until the other side closes it or stays silent for
+/// [`ServeOptions::idle_exit`] (Ok), or the link fails.
 /// `on_event` sees every controller event (answers, executed blocks, alarms) as it happens.
 pub async fn serve<S: AsyncRead + AsyncWrite + Unpin>(
     mut stream: S,
@@ -50,6 +55,7 @@ pub async fn serve<S: AsyncRead + AsyncWrite + Unpin>(
     let banner = controller.take_output();
     stream.write_all(&banner).await?;
     let mut last = tokio::time::Instant::now();
+    let mut last_byte = last;
     loop {
         // Scaled: wait for bytes or for the next tick, whichever comes first. As fast as
         // possible: take whatever bytes are there and go on (a timer, even of zero, would
@@ -71,6 +77,12 @@ pub async fn serve<S: AsyncRead + AsyncWrite + Unpin>(
                 return Ok(());
             }
             inbox.extend_from_slice(&buf[..n]);
+            last_byte = tokio::time::Instant::now();
+        } else if options
+            .idle_exit
+            .is_some_and(|idle| last_byte.elapsed() >= idle)
+        {
+            return Ok(());
         }
         let now = tokio::time::Instant::now();
         let dt = match options.time_scale {
@@ -197,5 +209,23 @@ mod tests {
         let (answers, simulated) = answers_after(Duration::from_secs(10), &lines, opts).await;
         assert!(answers.iter().all(|a| a == "ok"));
         assert!(simulated >= 104.0 / 120.0 - 0.01, "{simulated}");
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_silent_client_is_left_after_the_idle_time() {
+        let (client, server) = tokio::io::duplex(4096);
+        let mut controller = Controller::new(&profile(), ControllerOptions::default()).unwrap();
+        let options = ServeOptions {
+            idle_exit: Some(Duration::from_secs(60)),
+            ..ServeOptions::default()
+        };
+        let started = tokio::time::Instant::now();
+        serve(server, &mut controller, options, |_| {})
+            .await
+            .unwrap();
+        let waited = started.elapsed();
+        assert!(waited >= Duration::from_secs(60), "{waited:?}");
+        assert!(waited < Duration::from_secs(61), "{waited:?}");
+        drop(client);
     }
 }

@@ -6,7 +6,9 @@
 
 use anyhow::{Context, Result};
 use clap::Parser;
+use std::io::Write;
 use std::path::PathBuf;
+use std::time::Duration;
 use tokio_serial::SerialPort;
 use whirl::machine::MachineProfile;
 use whirl_sim::serve::{serve, ServeOptions};
@@ -37,6 +39,17 @@ struct Cli {
     /// Receive buffer size in bytes (grblHAL 1024; 128 like an AVR grbl).
     #[arg(long, default_value_t = 1024)]
     rx: usize,
+    /// The job whose groove the machine cuts: the Δ guard measures the executed motion
+    /// against it and raises ALARM:64 as soon as the profile error exceeds Δ.
+    #[arg(long)]
+    job: Option<PathBuf>,
+    /// Append every simulator event (answers, executed moves, alarms) to this file as JSON
+    /// lines.
+    #[arg(long)]
+    log: Option<PathBuf>,
+    /// Stop after this many seconds without a byte from the client (0: never).
+    #[arg(long, default_value_t = 600.0)]
+    idle_exit: f64,
 }
 
 #[tokio::main(flavor = "current_thread")]
@@ -44,7 +57,7 @@ async fn main() -> std::process::ExitCode {
     match run(Cli::parse()).await {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", whirl::error_message(e.as_ref()));
             std::process::ExitCode::FAILURE
         }
     }
@@ -60,12 +73,39 @@ async fn run(cli: Cli) -> Result<()> {
         ..ControllerOptions::default()
     };
     let mut controller = Controller::new(&whirl::simulator::machine(&profile), options)?;
+    if let Some(path) = &cli.job {
+        let job = whirl::job::Job::load(path)?;
+        let guard = whirl::simulator::guard::DeltaGuard::new(&job, &profile)
+            .with_context(|| format!("cannot measure {}", path.display()))?;
+        controller.set_guard(Box::new(guard));
+    }
+    let mut log_file = match &cli.log {
+        Some(path) => Some(
+            std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(path)
+                .with_context(|| format!("cannot open {}", path.display()))?,
+        ),
+        None => None,
+    };
     let serve_options = ServeOptions {
         time_scale: (cli.time_scale > 0.0).then_some(cli.time_scale),
         baud: cli.baud,
+        idle_exit: (cli.idle_exit > 0.0).then(|| Duration::from_secs_f64(cli.idle_exit)),
         ..ServeOptions::default()
     };
-    let log = |e: &whirl_sim::Event| tracing::debug!(?e);
+    // One line per event, written whole and flushed: a crash loses at most the last one.
+    let log = |e: &whirl_sim::Event| {
+        tracing::debug!(?e);
+        if let Some(file) = log_file.as_mut() {
+            let mut line = serde_json::to_string(e).expect("simulator events serialise");
+            line.push('\n');
+            if let Err(error) = file.write_all(line.as_bytes()) {
+                tracing::error!(%error, "cannot write the simulator log");
+            }
+        }
+    };
     if let Some(link) = &cli.pty {
         let (master, slave) =
             tokio_serial::SerialStream::pair().context("cannot open a pseudo-terminal")?;

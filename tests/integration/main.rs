@@ -1,6 +1,7 @@
 //! Integration tests: one binary, shared helpers in `util`.
 
 mod cli;
+mod dry_run;
 mod linkage;
 mod python_client;
 mod sim;

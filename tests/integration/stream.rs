@@ -10,13 +10,13 @@ struct Sim(Child);
 
 impl Sim {
     fn start(link: &std::path::Path) -> Sim {
+        Sim::start_with(link, &[OsStr::new("--time-scale"), OsStr::new("50")])
+    }
+
+    fn start_with(link: &std::path::Path, args: &[&OsStr]) -> Sim {
         let child = Command::new(env!("CARGO_BIN_EXE_whirl-sim"))
-            .args([
-                OsStr::new("--pty"),
-                link.as_os_str(),
-                OsStr::new("--time-scale"),
-                OsStr::new("50"),
-            ])
+            .args([OsStr::new("--pty"), link.as_os_str()])
+            .args(args)
             .stderr(Stdio::null())
             .spawn()
             .expect("whirl-sim starts");
@@ -105,4 +105,56 @@ fn a_program_past_the_travel_is_refused_before_the_port_is_opened() {
         err.contains("Z") && !err.contains("/nonexistent/port"),
         "the limit, not the port: {err}"
     );
+}
+
+#[test]
+fn whirl_sim_with_a_job_stops_a_coarse_program_with_alarm_64_and_logs_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("grbl");
+    let job = util::example("double-start");
+    let sim_log = dir.path().join("sim.jsonl");
+    let _sim = Sim::start_with(
+        &link,
+        &[
+            OsStr::new("--time-scale"),
+            OsStr::new("0"),
+            OsStr::new("--job"),
+            job.as_os_str(),
+            OsStr::new("--log"),
+            sim_log.as_os_str(),
+        ],
+    );
+    let program = util::coarse_program(&job, dir.path());
+    let log = dir.path().join("exec.jsonl");
+    let o = util::whirl(&[
+        OsStr::new("stream"),
+        program.as_os_str(),
+        OsStr::new("--port"),
+        link.as_os_str(),
+        OsStr::new("--log"),
+        log.as_os_str(),
+    ]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("code: 64"), "{err}");
+    // The simulator's own log: the alarm with what the guard found, and executed moves
+    // that end before the coarse stretch does.
+    let text = std::fs::read_to_string(&sim_log).unwrap();
+    let events: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let alarm = events
+        .iter()
+        .find(|e| e["event"] == "alarm")
+        .expect("an alarm event");
+    assert_eq!(alarm["alarm"], "ProfileError");
+    let message = alarm["breach"]["message"].as_str().unwrap();
+    assert!(message.contains("beyond delta 0.005 mm"), "{message}");
+    let executed: Vec<&serde_json::Value> =
+        events.iter().filter(|e| e["event"] == "executed").collect();
+    assert!(!executed.is_empty());
+    assert!(executed
+        .iter()
+        .all(|e| e["to"]["z"].as_f64().unwrap() < 2.0));
 }

@@ -50,3 +50,34 @@ pub fn block(line: &str) -> &str {
         None => line,
     }
 }
+
+/// `job`'s planned program with every other linked move dropped where Z is within ±2 mm,
+/// written to `dir/coarse.nc`: the chords there span two segments, so their interpolation
+/// error is about four times what the planner allowed, beyond Δ.
+pub fn coarse_program(job: &Path, dir: &Path) -> PathBuf {
+    let planned = dir.join("planned.nc");
+    let o = whirl(&[
+        std::ffi::OsStr::new("plan"),
+        job.as_os_str(),
+        std::ffi::OsStr::new("-o"),
+        planned.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&planned).expect("the planned program");
+    let (mut last_z, mut k) = (f64::NAN, 0);
+    let coarse: Vec<&str> = text
+        .lines()
+        .filter(|line| {
+            if let Some(z) = line.split(' ').find_map(|w| w.strip_prefix('Z')) {
+                last_z = z.parse().expect("a Z word");
+            }
+            let linked = block(line).starts_with("G1") && line.contains(" C");
+            if linked && (-2.0..=2.0).contains(&last_z) {
+                k += 1;
+                return k % 2 == 1;
+            }
+            true
+        })
+        .collect();
+    write(dir, "coarse.nc", &(coarse.join("\n") + "\n"))
+}

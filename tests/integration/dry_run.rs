@@ -1,0 +1,185 @@
+//! `whirl dry-run` end to end: the planned program streamed over a pseudo-terminal to the
+//! simulated controller, whose Δ guard measures what it executed.
+
+use crate::util;
+use serde_json::Value;
+use std::ffi::OsStr;
+use std::path::Path;
+use whirl::exec_log::{self, Event};
+
+/// Runs `whirl dry-run JOB --report --log [extra…]`; returns the exit code, the report and
+/// the log as read back.
+fn dry_run(job: &Path, dir: &Path, extra: &[&OsStr]) -> (Option<i32>, Value, exec_log::Read) {
+    let (report, log) = (dir.join("report.json"), dir.join("exec.jsonl"));
+    let mut args = vec![
+        OsStr::new("dry-run"),
+        job.as_os_str(),
+        OsStr::new("--report"),
+        report.as_os_str(),
+        OsStr::new("--log"),
+        log.as_os_str(),
+    ];
+    args.extend_from_slice(extra);
+    let o = util::whirl(&args);
+    let text = std::fs::read_to_string(&report).unwrap_or_else(|_| {
+        panic!(
+            "no report: {}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        )
+    });
+    let read = exec_log::read(&log).expect("the log reads back");
+    (o.status.code(), serde_json::from_str(&text).unwrap(), read)
+}
+
+/// An executed move of a log.
+struct Move {
+    /// Where it ended: X, Z, C.
+    to: [f64; 3],
+    /// A rapid (positioning).
+    rapid: bool,
+}
+
+/// The executed moves of a log.
+fn executed(log: &exec_log::Read) -> Vec<Move> {
+    log.records
+        .iter()
+        .filter_map(|r| match &r.event {
+            Event::Executed { to, rapid, .. } => Some(Move {
+                to: *to,
+                rapid: *rapid,
+            }),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn every_example_dry_runs_to_the_end_within_delta() {
+    for job in util::examples() {
+        let dir = tempfile::tempdir().unwrap();
+        let planned = dir.path().join("p.nc");
+        let o = util::whirl(&[
+            OsStr::new("plan"),
+            job.as_os_str(),
+            OsStr::new("-o"),
+            planned.as_os_str(),
+        ]);
+        assert!(o.status.success());
+        let program = std::fs::read_to_string(&planned).unwrap();
+        let (code, r, log) = dry_run(&job, dir.path(), &[]);
+        let name = job.display();
+        assert_eq!(code, Some(0), "{name}: {r:#}");
+        assert_eq!(r["within_delta"], true, "{name}");
+        assert_eq!(r["completed"], true, "{name}");
+        // The program the dry run streamed is the one `whirl plan` writes, every line acked.
+        let lines = program.lines().count() as u64;
+        assert_eq!(r["lines"].as_u64(), Some(lines), "{name}");
+        assert_eq!(r["lines_acked"].as_u64(), Some(lines), "{name}");
+        assert!(r["max_error_mm"].as_f64().unwrap() <= r["delta_mm"].as_f64().unwrap());
+        assert_eq!(
+            r["points_measured"], r["points"],
+            "{name}: the whole groove measured"
+        );
+        let u = r["link_utilization"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&u), "{name}: {u}");
+        assert_eq!(r["alarms"].as_array().map(Vec::len), Some(0), "{name}");
+        // The simulator's record: every linked move executed exactly once, each naming its
+        // file line (grblHAL programs carry their line numbers as N words).
+        let moves = executed(&log);
+        let linked = program
+            .lines()
+            .filter(|l| util::block(l).starts_with("G1") && l.contains(" C"))
+            .count();
+        let cutting = moves.iter().filter(|m| !m.rapid).count();
+        assert!(
+            cutting >= linked,
+            "{name}: {cutting} moves for {linked} lines"
+        );
+        let summary = exec_log::Summary::of(&log);
+        assert!(summary.executed_twice.is_empty(), "{name}");
+        assert_eq!(summary.completed, Some(true), "{name}");
+    }
+}
+
+#[test]
+fn a_coarse_stretch_trips_the_delta_alarm_inside_the_stretch() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = util::example("double-start");
+    let program = util::coarse_program(&job, dir.path());
+    let (code, r, log) = dry_run(
+        &job,
+        dir.path(),
+        &[OsStr::new("--program"), program.as_os_str()],
+    );
+    assert_eq!(code, Some(2), "beyond Δ exits 2: {r:#}");
+    assert_eq!(r["within_delta"], false);
+    assert_eq!(r["completed"], false);
+    let alarms = r["alarms"].as_array().unwrap();
+    assert_eq!(alarms.len(), 1, "{r:#}");
+    assert_eq!(alarms[0]["code"], 64);
+    let detail = alarms[0]["detail"].as_str().unwrap();
+    assert!(detail.contains("beyond delta 0.005 mm"), "{detail}");
+    assert!(r["max_error_mm"].as_f64().unwrap() > 0.005);
+    assert!(r["lines_acked"].as_u64() < r["lines"].as_u64());
+    // The machine stopped inside the stretch: no move ends past it, and the last one ends in it.
+    let moves = executed(&log);
+    let last_z = moves.last().unwrap().to[1];
+    assert!((-2.0..2.0).contains(&last_z), "stopped at Z {last_z}");
+    assert!(moves.iter().all(|m| m.to[1] < 2.0));
+}
+
+#[test]
+fn the_log_of_a_dry_run_draws_the_machined_section_against_the_target() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = util::example("double-start");
+    let (code, _, _) = dry_run(&job, dir.path(), &[]);
+    assert_eq!(code, Some(0));
+    let svg = dir.path().join("run.svg");
+    let o = util::whirl(&[
+        OsStr::new("log"),
+        OsStr::new("plot"),
+        dir.path().join("exec.jsonl").as_os_str(),
+        OsStr::new("-o"),
+        svg.as_os_str(),
+        OsStr::new("--job"),
+        job.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&svg).unwrap();
+    for title in ["X over time", "Z over time", "C over time", "axial section"] {
+        assert!(text.contains(title), "{title}");
+    }
+    assert!(text.contains("machined (error"));
+}
+
+#[test]
+fn a_program_past_the_travel_is_refused_before_the_simulator_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    let program = util::write(
+        dir.path(),
+        "far.nc",
+        "N1 G21 G90 G94\nN2 G0 X0 Z0 C0\nN3 G1 X500 F100\nN4 M2\n",
+    );
+    let (report, log) = (dir.path().join("r.json"), dir.path().join("l.jsonl"));
+    let o = util::whirl(&[
+        OsStr::new("dry-run"),
+        util::example("double-start").as_os_str(),
+        OsStr::new("--program"),
+        program.as_os_str(),
+        OsStr::new("--report"),
+        report.as_os_str(),
+        OsStr::new("--log"),
+        log.as_os_str(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("X") && err.contains("160"),
+        "names the axis and limit: {err}"
+    );
+    assert!(!report.exists());
+    // Nothing was sent: the log holds no line.
+    let sent = std::fs::read_to_string(&log).unwrap_or_default();
+    assert!(!sent.contains("\"sent\""), "{sent}");
+}
