@@ -2,6 +2,7 @@
 
 mod cli;
 mod dry_run;
+mod link;
 mod linkage;
 mod python_client;
 mod sim;
