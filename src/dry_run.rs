@@ -85,8 +85,11 @@ pub struct DryRunReport {
     /// How the stream ended, when it did not complete.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stop: Option<String>,
-    /// The simulated machine's time, s: what the job takes on the machine.
-    pub simulated_time_s: f64,
+    /// Simulated time from the first move's start to the last one's end, s: what the job
+    /// takes on the machine, stops for a slow sender included. (Before and after, the
+    /// simulator's clock runs on while the streamer opens the port and confirms the machine
+    /// idle, which takes it wall time, not machine time.)
+    pub machine_time_s: f64,
     /// Wall time of the dry run, s.
     pub wall_time_s: f64,
     /// The link's baud rate.
@@ -140,6 +143,8 @@ struct SimSide {
     started: Instant,
     /// Simulated time of the last line answered.
     last_answer: f64,
+    /// Simulated times the first executed move started and the last one ended.
+    motion: Option<(f64, f64)>,
     alarms: Vec<AlarmReport>,
     log_error: Option<LogError>,
 }
@@ -151,13 +156,17 @@ impl SimSide {
                 self.last_answer = *time;
                 None
             }
-            Event::Executed(block) => Some(exec_log::Event::Executed {
-                line: block.n.map(|n| n as usize),
-                times: [block.start_time, block.end_time],
-                from: block.from.to_array(),
-                to: block.to.to_array(),
-                rapid: block.kind == MoveKind::Rapid,
-            }),
+            Event::Executed(block) => {
+                let start = self.motion.map_or(block.start_time, |m| m.0);
+                self.motion = Some((start, block.end_time));
+                Some(exec_log::Event::Executed {
+                    line: block.n.map(|n| n as usize),
+                    times: [block.start_time, block.end_time],
+                    from: block.from.to_array(),
+                    to: block.to.to_array(),
+                    rapid: block.kind == MoveKind::Rapid,
+                })
+            }
             Event::Alarm { alarm, breach, .. } => {
                 let code = u16::from(alarm.code());
                 self.alarms.push(AlarmReport {
@@ -216,6 +225,7 @@ pub async fn dry_run(
         log: log.clone(),
         started,
         last_answer: 0.0,
+        motion: None,
         alarms: Vec::new(),
         log_error: None,
     };
@@ -264,8 +274,8 @@ pub async fn dry_run(
         completed,
         lines: total,
         lines_acked: outcome.lines_acked,
-        stop: (!completed).then(|| format!("{:?}", outcome.ending)),
-        simulated_time_s: controller.now(),
+        stop: (!completed).then(|| outcome.ending.to_string()),
+        machine_time_s: sim.motion.map_or(0.0, |(start, end)| end - start),
         wall_time_s: started.elapsed().as_secs_f64(),
         baud: options.baud,
         link_utilization: link_utilization(

@@ -64,6 +64,11 @@ enum Command {
         /// Give up (with a feed hold) after this many seconds without any progress.
         #[arg(long, default_value_t = 30.0)]
         stall_timeout: f64,
+        /// Resume a stopped run at this program line (1-based, as a stop reports it), behind
+        /// a preamble that restores units, distance and feed modes, the G92 offset and the
+        /// spindle as the program had them there.
+        #[arg(long)]
+        resume_at: Option<usize>,
     },
     /// Dry-run a job: plan it, start the simulated controller in this process on a
     /// pseudo-terminal, stream the program to it through the same serial code a machine gets,
@@ -264,6 +269,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             machine,
             log,
             stall_timeout,
+            resume_at,
         } => {
             let machine = load_machine(machine.as_deref())?;
             let text = if input.extension().is_some_and(|e| e == "toml") {
@@ -283,6 +289,10 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 machine: Some(machine),
                 no_progress_timeout: Some(std::time::Duration::from_secs_f64(stall_timeout)),
                 on_progress: bar.as_ref().map(Progress::callback),
+                resume_at: match resume_at {
+                    Some(0) => anyhow::bail!("--resume-at counts lines from 1"),
+                    line => line.map(|l| l - 1),
+                },
                 ..Default::default()
             };
             let runtime = tokio::runtime::Builder::new_current_thread()
@@ -310,14 +320,21 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     .map_or(String::new(), |u| format!(", link {:.0} % busy", 100.0 * u))
             );
             if outcome.completed() {
-                Ok(ExitCode::SUCCESS)
-            } else {
-                anyhow::bail!(
-                    "the stream stopped: {:?}; resume from {:?}",
-                    outcome.ending,
-                    outcome.resume
-                )
+                return Ok(ExitCode::SUCCESS);
             }
+            let mut message = format!("the stream {}", outcome.ending);
+            if let Some(r) = &outcome.resume {
+                message.push_str(&format!("; resume with --resume-at {}", r.line_index + 1));
+                if !r.possibly_executed.is_empty() {
+                    message.push_str(&format!(
+                        " (lines {} to {} may already have run: check where the machine \
+                         stands before resuming)",
+                        r.possibly_executed.start + 1,
+                        r.possibly_executed.end
+                    ));
+                }
+            }
+            anyhow::bail!(message)
         }
         Command::DryRun {
             job: job_path,
@@ -380,7 +397,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 r.job,
                 r.lines_acked,
                 r.lines,
-                r.simulated_time_s,
+                r.machine_time_s,
                 r.wall_time_s,
                 100.0 * r.link_utilization,
                 r.baud

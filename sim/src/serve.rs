@@ -11,6 +11,24 @@ use crate::{Controller, Event};
 use std::time::Duration;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 
+/// As fast as possible, simulated time runs hundreds of times faster than wall time, so a
+/// sender descheduled for a few milliseconds would look like a link idle for seconds, and
+/// the machine would stop for want of lines it would have had. So while the controller is
+/// about to starve the simulator waits, in wall time, for the sender's next bytes, up to
+/// this long, as a real controller's clock would have waited a few microseconds.
+const SENDER_WAIT: Duration = Duration::from_millis(50);
+
+/// Waits in a row a sender may let pass before the simulator stops waiting for it: it has
+/// nothing more to send (until it sends again).
+const SENDER_PATIENCE: u32 = 3;
+
+/// The controller could take a line (its planner has room) but has almost none to take:
+/// less than a quarter of its receive buffer holds bytes, and none are waiting on the link.
+fn starving(controller: &Controller, inbox: &[u8]) -> bool {
+    let size = controller.options().rx_buffer_size;
+    inbox.is_empty() && controller.blocks_free() > 0 && controller.rx_free() > size * 3 / 4
+}
+
 /// How the simulated clock and the link behave.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ServeOptions {
@@ -56,15 +74,25 @@ pub async fn serve<S: AsyncRead + AsyncWrite + Unpin>(
     stream.write_all(&banner).await?;
     let mut last = tokio::time::Instant::now();
     let mut last_byte = last;
+    let mut missed_waits = 0;
     loop {
         // Scaled: wait for bytes or for the next tick, whichever comes first. As fast as
         // possible: take whatever bytes are there and go on (a timer, even of zero, would
-        // cost a timer tick of wall time per step).
+        // cost a timer tick of wall time per step), unless the controller is about to
+        // starve (see `starving`).
         let read = match options.time_scale {
             Some(_) => tokio::select! {
                 read = stream.read(&mut buf) => Some(read),
                 () = tokio::time::sleep(options.tick) => None,
             },
+            None if missed_waits < SENDER_PATIENCE && starving(controller, &inbox) => {
+                let read = tokio::select! {
+                    read = stream.read(&mut buf) => Some(read),
+                    () = tokio::time::sleep(SENDER_WAIT) => None,
+                };
+                missed_waits = if read.is_some() { 0 } else { missed_waits + 1 };
+                read
+            }
             None => tokio::select! {
                 biased;
                 read = stream.read(&mut buf) => Some(read),
@@ -227,5 +255,43 @@ mod tests {
         assert!(waited >= Duration::from_secs(60), "{waited:?}");
         assert!(waited < Duration::from_secs(61), "{waited:?}");
         drop(client);
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn running_as_fast_as_possible_it_waits_for_a_sender_it_would_starve() {
+        // The sender takes 20 ms (wall) to follow its first line with the second. The
+        // simulator runs unscaled, hundreds of simulated seconds per wall second, but the
+        // machine must not stop between the two moves: the second is sent before the first
+        // is done on any real controller. A dwell, answered once the queue has run, ends it.
+        let (client, server) = tokio::io::duplex(4096);
+        let mut controller = Controller::new(&profile(), ControllerOptions::default()).unwrap();
+        let options = ServeOptions {
+            time_scale: None,
+            ..ServeOptions::default()
+        };
+        let sender = async move {
+            let (read, mut write) = tokio::io::split(client);
+            let mut reader = tokio::io::BufReader::new(read);
+            write.write_all(b"G1 X10 F600\n").await.unwrap();
+            tokio::time::sleep(Duration::from_millis(20)).await;
+            write.write_all(b"G1 X20\nG4 P0\n").await.unwrap();
+            let mut oks = 0;
+            while oks < 3 {
+                let mut line = String::new();
+                reader.read_line(&mut line).await.unwrap();
+                oks += usize::from(line.trim() == "ok");
+            }
+        };
+        let mut blocks = Vec::new();
+        let served = serve(server, &mut controller, options, |e| {
+            if let Event::Executed(b) = e {
+                blocks.push(b.clone());
+            }
+        });
+        tokio::join!(sender, async {
+            served.await.unwrap();
+        });
+        assert_eq!(blocks.len(), 2);
+        assert_eq!(blocks[1].start_time, blocks[0].end_time);
     }
 }

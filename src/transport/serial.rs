@@ -233,6 +233,20 @@ pub enum Ending {
     },
 }
 
+impl fmt::Display for Ending {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Ending::Completed => write!(f, "completed"),
+            Ending::Stopped(reason) => write!(f, "stopped: {reason}"),
+            Ending::TimedOut { after } => write!(
+                f,
+                "nothing new from the controller for {:.0} s: feed hold sent",
+                after.as_secs_f64()
+            ),
+        }
+    }
+}
+
 /// What a run did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StreamOutcome {

@@ -136,7 +136,7 @@ fn whirl_sim_with_a_job_stops_a_coarse_program_with_alarm_64_and_logs_why() {
     ]);
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("code: 64"), "{err}");
+    assert!(err.contains("stopped: ALARM:64"), "{err}");
     // The simulator's own log: the alarm with what the guard found, and executed moves
     // that end before the coarse stretch does.
     let text = std::fs::read_to_string(&sim_log).unwrap();
@@ -157,4 +157,47 @@ fn whirl_sim_with_a_job_stops_a_coarse_program_with_alarm_64_and_logs_why() {
     assert!(executed
         .iter()
         .all(|e| e["to"]["z"].as_f64().unwrap() < 2.0));
+}
+
+#[test]
+fn resume_at_streams_from_that_line_behind_a_preamble_and_runs_nothing_before_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("grbl");
+    let sim_log = dir.path().join("sim.jsonl");
+    let _sim = Sim::start_with(
+        &link,
+        &[
+            OsStr::new("--time-scale"),
+            OsStr::new("0"),
+            OsStr::new("--log"),
+            sim_log.as_os_str(),
+        ],
+    );
+    // Feeds at F3000 along X: the first G1 sets the feed, which the resumed run must restore.
+    let mut lines = vec!["N1 G21 G90 G94".to_owned(), "N2 G0 X0 Z0 C0".to_owned()];
+    lines.push("N3 G1 X1 F3000".to_owned());
+    lines.extend((4..=40).map(|n| format!("N{n} G1 X{n}")));
+    lines.push("N41 M2".to_owned());
+    let program = util::write(dir.path(), "p.nc", &(lines.join("\n") + "\n"));
+    let o = util::whirl(&[
+        OsStr::new("stream"),
+        program.as_os_str(),
+        OsStr::new("--port"),
+        link.as_os_str(),
+        OsStr::new("--log"),
+        dir.path().join("exec.jsonl").as_os_str(),
+        OsStr::new("--resume-at"),
+        OsStr::new("20"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The simulator's own log: lines N20 to N40 each executed once, nothing before N20.
+    let text = std::fs::read_to_string(&sim_log).unwrap();
+    let mut executed: Vec<u64> = text
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|e| e["event"] == "executed")
+        .filter_map(|e| e["n"].as_u64())
+        .collect();
+    executed.sort_unstable();
+    assert_eq!(executed, (20..=40).collect::<Vec<u64>>());
 }
