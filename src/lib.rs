@@ -41,6 +41,7 @@
 //! - [`dry_run`]: a planned job streamed to the in-process simulator over a pseudo-terminal,
 //!   its profile error measured by the simulator's Δ guard.
 //! - [`exec_log`]: the executed-path log (JSON lines), its summary and plots.
+//! - [`can`]: sans-I/O CAN layers for CiA 402 drives: frames, slcan, CANopen, CiA 402.
 //! - [`transport`]: the async edges that move a protocol's bytes: a program streamed to a
 //!   controller over a serial line (tokio, tokio-serial), logged to the executed-path log.
 //!
@@ -72,6 +73,7 @@
 
 pub mod brent;
 pub mod budget;
+pub mod can;
 pub mod check;
 pub mod dry_run;
 pub mod exec_log;

@@ -25,6 +25,7 @@
 //! - [`serve`]: the controller served on a byte stream in simulated time (the only async part).
 //! - [`guard`]: the Δ guard's seat: a watch on executed blocks that can stop the machine.
 //! - [`error`]: the numbered answers and the simulator's own errors.
+//! - [`canopen`]: CAN equipment: an slcan adapter and CiA 402 drives on CANopen.
 //!
 //! # Example
 //!
@@ -67,6 +68,7 @@
 //! assert!(report.starts_with("<Idle|MPos:0.000,0.000,30.000,0.000|Bf:35,1023|"));
 //! ```
 
+pub mod canopen;
 pub mod controller;
 pub mod error;
 pub mod guard;

@@ -1,0 +1,1481 @@
+//! A simulated CiA 402 servo drive on CANopen: frames in ([`Drive::receive`]), frames out
+//! ([`Drive::take_output`]), simulated time passed in ([`Drive::advance`]).
+//!
+//! # CANopen (CiA 301)
+//!
+//! - **NMT.** Power-up (and NMT reset node / reset communication) sends the boot-up
+//!   message (one byte 0x00 on 0x700 + node) and enters Pre-operational. NMT commands
+//!   (two bytes on 0x000: specifier, node or 0 for all) move it: 0x01 Operational, 0x02
+//!   Stopped, 0x80 Pre-operational, 0x81 reset node (the profile's objects too), 0x82 reset
+//!   communication (1017h and the PDO objects). SDO, SYNC and EMCY work in Pre-operational
+//!   and Operational, PDOs only in Operational; Stopped leaves NMT and heartbeat.
+//! - **Heartbeat.** Every 1017h milliseconds (0: off), the NMT state byte on 0x700 + node
+//!   (0x04 Stopped, 0x05 Operational, 0x7F Pre-operational); writing 1017h restarts the
+//!   period.
+//! - **SDO server**, expedited only, on 0x600 + node, answering on 0x580 + node. Frames
+//!   of other than 8 bytes are ignored (CiA 301 gives SDO frames 8). Aborts: 0x06020000
+//!   unknown object, 0x06090011 unknown sub-index, 0x06010002 read-only, 0x06070012 /
+//!   0x06070013 size indicated too long / too short, 0x06090030 a value out of range,
+//!   0x05040001 any service but expedited download and upload (the sim has no object
+//!   longer than four bytes, so segmented transfers are never needed).
+//! - **PDOs**, the four of each predefined direction (1400h–1403h, 1600h–1603h,
+//!   1800h–1803h, 1A00h–1A03h), 11-bit COB-IDs only. Power-on mapping: RPDO1 = 6040h,
+//!   607Ah and TPDO1 = 6041h, 6064h, both transmission type 1, the others invalid and
+//!   empty. Mapping follows CiA 301's procedure, and the aborts CANopenNode gives for
+//!   breaking it: changing a mapping while the PDO is valid, or an entry while sub-index 0
+//!   is not 0, 0x06010000; an object that cannot be mapped (or with another bit length)
+//!   0x06040041; more than 8 entries or 64 bits 0x06040042; making a PDO valid with no
+//!   mapping, changing a valid PDO's COB-ID, a 29-bit COB-ID, transmission types 241–253
+//!   0x06090030.
+//!
+//!   RPDOs of transmission type 0–240 are applied at the next SYNC (the last one received
+//!   wins), 254–255 at once. TPDOs of type 1–240 go every n-th SYNC, 0 at a SYNC when their
+//!   data changed, 254–255 whenever their data changed. An RPDO shorter than its mapping
+//!   is dropped with EMCY 0x8210 (CiA 301: PDO not processed due to length error).
+//!
+//! # The drive (CiA 402)
+//!
+//! - The power state machine of 6040h/6041h with all its transitions, 0–16 (0, 1 at
+//!   power-up and reset node, 13, 14 on a fault, the rest by controlword); "switch
+//!   on + enable operation" (0x0F) from Ready to switch on does 3 and 4 at once, as the
+//!   profile allows. Fault reset acts on the rising edge of controlword bit 7; with bit 7
+//!   high no other command acts. Quick stop stops at once and stays in Quick stop active
+//!   (quick stop option code 6) until disable voltage (12) or enable operation (16).
+//!   Not ready to switch on and Fault reaction active pass instantly.
+//! - Statusword: the state's bits, bit 4 (voltage enabled: mains are always on), bit 9
+//!   (remote), bit 12 in cyclic synchronous position mode while operation is enabled (the
+//!   drive follows the target), bit 13 after a following error.
+//! - Modes (6060h, shown in 6061h): 0 (none) and 8 (cyclic synchronous position); others
+//!   abort 0x06090030.
+//! - Each SYNC is one control cycle: synchronous RPDOs are applied, then in CSP with
+//!   operation enabled the actual position (6064h) moves towards the target (607Ah) by at
+//!   most [`DriveConfig::max_step`] counts, then the following error is checked, then the
+//!   synchronous TPDOs are sent, so they show the cycle's result.
+//! - Following error: |607Ah − 6064h| beyond 6065h after a cycle (6066h, the time-out, is
+//!   taken as 0) faults the drive with EMCY 0x8611, error register 0x01 (generic). 6065h
+//!   = FFFFFFFFh switches the check off, as CiA 402 says. The fault reset sends EMCY 0x0000.
+//!   The drive does not move its target to its position on enable: a master that enables
+//!   with a stale target sees the jump, or the fault.
+
+use std::time::Duration;
+
+use thiserror::Error;
+
+use super::Frame;
+
+/// SDO abort codes the server gives (CiA 301).
+mod abort {
+    pub const COMMAND: u32 = 0x0504_0001;
+    pub const UNSUPPORTED: u32 = 0x0601_0000;
+    pub const READ_ONLY: u32 = 0x0601_0002;
+    pub const NO_OBJECT: u32 = 0x0602_0000;
+    pub const CANNOT_MAP: u32 = 0x0604_0041;
+    pub const MAP_TOO_LONG: u32 = 0x0604_0042;
+    pub const TOO_LONG: u32 = 0x0607_0012;
+    pub const TOO_SHORT: u32 = 0x0607_0013;
+    pub const NO_SUB: u32 = 0x0609_0011;
+    pub const INVALID: u32 = 0x0609_0030;
+}
+
+/// 1000h: CiA 402 (0x0192) in the low word, servo drive (0x02) above it.
+pub const DEVICE_TYPE: u32 = 0x0002_0192;
+/// EMCY code of a following error (CiA 402).
+pub const EMCY_FOLLOWING_ERROR: u16 = 0x8611;
+/// EMCY code of an RPDO shorter than its mapping (CiA 301).
+pub const EMCY_PDO_LENGTH: u16 = 0x8210;
+
+/// How a drive is built.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DriveConfig {
+    /// CANopen node id, 1–127.
+    pub node: u8,
+    /// The most the position moves in one SYNC cycle, counts (the axis's speed limit).
+    pub max_step: u32,
+    /// Position actual value at power-up, counts.
+    pub position: i32,
+    /// Power-on value of 1017h, ms.
+    pub heartbeat_ms: u16,
+    /// Power-on value of 6065h, counts.
+    pub following_error_window: u32,
+}
+
+impl DriveConfig {
+    /// Node `node` with 1000 counts a cycle, at 0, no heartbeat, a 10000-count window.
+    pub fn new(node: u8) -> DriveConfig {
+        DriveConfig {
+            node,
+            max_step: 1000,
+            position: 0,
+            heartbeat_ms: 0,
+            following_error_window: 10_000,
+        }
+    }
+}
+
+/// A configuration that cannot be built.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Error)]
+pub enum DriveConfigError {
+    /// Node ids are 1–127.
+    #[error("node id {0} is not 1-127")]
+    NodeId(u8),
+}
+
+/// The NMT states a drive can be in after boot-up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NmtState {
+    /// Heartbeat byte 0x7F.
+    PreOperational,
+    /// 0x05.
+    Operational,
+    /// 0x04.
+    Stopped,
+}
+
+impl NmtState {
+    fn heartbeat(self) -> u8 {
+        match self {
+            NmtState::PreOperational => 0x7F,
+            NmtState::Operational => 0x05,
+            NmtState::Stopped => 0x04,
+        }
+    }
+}
+
+/// CiA 402 power drive system states.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PowerState {
+    /// Statusword `x0xx 0000`.
+    NotReadyToSwitchOn,
+    /// `x1xx 0000`.
+    SwitchOnDisabled,
+    /// `x01x 0001`.
+    ReadyToSwitchOn,
+    /// `x01x 0011`.
+    SwitchedOn,
+    /// `x01x 0111`.
+    OperationEnabled,
+    /// `x00x 0111`.
+    QuickStopActive,
+    /// `x0xx 1111`.
+    FaultReactionActive,
+    /// `x0xx 1000`.
+    Fault,
+}
+
+/// What happened in the drive, for logs and tests.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum DriveEvent {
+    /// The NMT state changed (boot-up included).
+    Nmt {
+        /// Simulated time.
+        time: Duration,
+        /// The new state.
+        state: NmtState,
+    },
+    /// The power state changed.
+    Power {
+        /// Simulated time.
+        time: Duration,
+        /// The new state.
+        state: PowerState,
+    },
+    /// A fault, with its EMCY code.
+    Fault {
+        /// Simulated time.
+        time: Duration,
+        /// The EMCY error code.
+        code: u16,
+    },
+    /// A control cycle (SYNC) in cyclic synchronous position mode with operation enabled.
+    Cycle {
+        /// Simulated time.
+        time: Duration,
+        /// 607Ah.
+        target: i32,
+        /// 6064h after the cycle.
+        actual: i32,
+    },
+}
+
+/// One PDO's communication and mapping objects, and its traffic state.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Pdo {
+    cob_id: u32,
+    transmission: u8,
+    count: u8,
+    map: [u32; 8],
+    /// SYNCs since the last transmission (TPDO types 1–240).
+    syncs: u8,
+    /// The data last sent (TPDO), to send on change.
+    last_sent: Option<Vec<u8>>,
+    /// Received data waiting for SYNC (synchronous RPDO).
+    received: Option<Vec<u8>>,
+}
+
+impl Pdo {
+    fn new(cob_id: u32, transmission: u8, map: &[u32]) -> Pdo {
+        let mut entries = [0; 8];
+        entries[..map.len()].copy_from_slice(map);
+        Pdo {
+            cob_id,
+            transmission,
+            count: map.len() as u8,
+            map: entries,
+            syncs: 0,
+            last_sent: None,
+            received: None,
+        }
+    }
+
+    fn valid(&self) -> bool {
+        self.cob_id & 0x8000_0000 == 0
+    }
+
+    fn can_id(&self) -> u16 {
+        (self.cob_id & 0x7FF) as u16
+    }
+
+    fn entries(&self) -> impl Iterator<Item = (u16, u8, usize)> + '_ {
+        self.map[..usize::from(self.count)].iter().map(|raw| {
+            (
+                (raw >> 16) as u16,
+                (raw >> 8) as u8,
+                (raw & 0xFF) as usize / 8,
+            )
+        })
+    }
+}
+
+/// An object dictionary entry as the SDO server sees it.
+struct Entry {
+    size: usize,
+    writable: bool,
+    value: u32,
+}
+
+/// A CiA 402 drive on a CANopen bus.
+#[derive(Debug, Clone)]
+pub struct Drive {
+    config: DriveConfig,
+    now: Duration,
+    nmt: NmtState,
+    heartbeat_ms: u16,
+    next_heartbeat: Option<Duration>,
+    power: PowerState,
+    controlword: u16,
+    mode: i8,
+    target: i32,
+    actual: i32,
+    window: u32,
+    following_error: bool,
+    error_register: u8,
+    rpdo: [Pdo; 4],
+    tpdo: [Pdo; 4],
+    output: Vec<Frame>,
+    events: Vec<DriveEvent>,
+}
+
+impl Drive {
+    /// Powers the drive up: the boot-up message waits in the output.
+    pub fn new(config: DriveConfig) -> Result<Drive, DriveConfigError> {
+        if !(1..=127).contains(&config.node) {
+            return Err(DriveConfigError::NodeId(config.node));
+        }
+        let (rpdo, tpdo) = default_pdos(config.node);
+        let mut drive = Drive {
+            now: Duration::ZERO,
+            nmt: NmtState::PreOperational,
+            heartbeat_ms: config.heartbeat_ms,
+            next_heartbeat: None,
+            power: PowerState::NotReadyToSwitchOn,
+            controlword: 0,
+            mode: 0,
+            target: config.position,
+            actual: config.position,
+            window: config.following_error_window,
+            following_error: false,
+            error_register: 0,
+            rpdo,
+            tpdo,
+            output: Vec::new(),
+            events: Vec::new(),
+            config,
+        };
+        drive.reset_application();
+        drive.reset_communication();
+        Ok(drive)
+    }
+
+    /// The NMT state.
+    pub fn nmt_state(&self) -> NmtState {
+        self.nmt
+    }
+
+    /// The power state.
+    pub fn power_state(&self) -> PowerState {
+        self.power
+    }
+
+    /// Position actual value (6064h), counts.
+    pub fn position(&self) -> i32 {
+        self.actual
+    }
+
+    /// Target position (607Ah), counts.
+    pub fn target(&self) -> i32 {
+        self.target
+    }
+
+    /// Simulated time.
+    pub fn now(&self) -> Duration {
+        self.now
+    }
+
+    /// Frames to put on the bus since the last call.
+    pub fn take_output(&mut self) -> Vec<Frame> {
+        std::mem::take(&mut self.output)
+    }
+
+    /// Events since the last call.
+    pub fn take_events(&mut self) -> Vec<DriveEvent> {
+        std::mem::take(&mut self.events)
+    }
+
+    /// Lets `dt` pass: heartbeats fall due.
+    pub fn advance(&mut self, dt: Duration) {
+        let end = self.now + dt;
+        while let Some(due) = self.next_heartbeat.filter(|due| *due <= end) {
+            self.now = due;
+            self.send(0x700, &[self.nmt.heartbeat()]);
+            self.next_heartbeat = Some(due + Duration::from_millis(self.heartbeat_ms.into()));
+        }
+        self.now = end;
+    }
+
+    /// A frame from the bus. Extended, remote and over-long frames are not CANopen's
+    /// business here and are ignored, as are frames for other nodes.
+    pub fn receive(&mut self, frame: &Frame) {
+        if frame.extended || frame.remote || frame.id > 0x7FF || frame.data.len() > 8 {
+            return;
+        }
+        let id = frame.id as u16;
+        let sdo = 0x600 + u16::from(self.config.node);
+        match id {
+            0x000 => self.nmt_command(&frame.data),
+            0x080 => self.sync(&frame.data),
+            _ if id == sdo => self.sdo_request(&frame.data),
+            _ => self.rpdo_frame(id, &frame.data),
+        }
+        self.send_changed_tpdos();
+    }
+
+    /// Statusword 6041h.
+    pub fn statusword(&self) -> u16 {
+        let state = match self.power {
+            PowerState::NotReadyToSwitchOn => 0x00,
+            PowerState::SwitchOnDisabled => 0x40,
+            PowerState::ReadyToSwitchOn => 0x21,
+            PowerState::SwitchedOn => 0x23,
+            PowerState::OperationEnabled => 0x27,
+            PowerState::QuickStopActive => 0x07,
+            PowerState::FaultReactionActive => 0x0F,
+            PowerState::Fault => 0x08,
+        };
+        let mut word = state | 1 << 4 | 1 << 9;
+        if self.csp_running() {
+            word |= 1 << 12;
+        }
+        if self.following_error {
+            word |= 1 << 13;
+        }
+        word
+    }
+
+    fn csp_running(&self) -> bool {
+        self.power == PowerState::OperationEnabled && self.mode == 8
+    }
+
+    fn send(&mut self, function: u16, data: &[u8]) {
+        self.output
+            .push(Frame::data(function + u16::from(self.config.node), data));
+    }
+
+    fn set_nmt(&mut self, state: NmtState) {
+        if state == self.nmt {
+            return;
+        }
+        if self.nmt == NmtState::Operational {
+            self.rpdo.iter_mut().for_each(|pdo| pdo.received = None);
+        }
+        if state == NmtState::Operational {
+            for pdo in &mut self.tpdo {
+                pdo.last_sent = None;
+                pdo.syncs = 0;
+            }
+        }
+        self.nmt = state;
+        self.events.push(DriveEvent::Nmt {
+            time: self.now,
+            state,
+        });
+    }
+
+    fn set_power(&mut self, state: PowerState) {
+        if state != self.power {
+            self.power = state;
+            self.events.push(DriveEvent::Power {
+                time: self.now,
+                state,
+            });
+        }
+    }
+
+    /// NMT reset node's application part: the profile's objects to power-on values.
+    fn reset_application(&mut self) {
+        self.set_power(PowerState::NotReadyToSwitchOn);
+        self.controlword = 0;
+        self.mode = 0;
+        self.target = self.actual;
+        self.window = self.config.following_error_window;
+        self.following_error = false;
+        self.error_register = 0;
+        self.set_power(PowerState::SwitchOnDisabled);
+    }
+
+    /// Communication objects to power-on values, boot-up, Pre-operational.
+    fn reset_communication(&mut self) {
+        (self.rpdo, self.tpdo) = default_pdos(self.config.node);
+        self.heartbeat_ms = self.config.heartbeat_ms;
+        self.restart_heartbeat();
+        self.send(0x700, &[0x00]);
+        self.nmt = NmtState::PreOperational;
+        self.events.push(DriveEvent::Nmt {
+            time: self.now,
+            state: NmtState::PreOperational,
+        });
+    }
+
+    fn restart_heartbeat(&mut self) {
+        self.next_heartbeat = (self.heartbeat_ms > 0)
+            .then(|| self.now + Duration::from_millis(self.heartbeat_ms.into()));
+    }
+
+    fn nmt_command(&mut self, data: &[u8]) {
+        let [specifier, node] = data else { return };
+        if *node != 0 && *node != self.config.node {
+            return;
+        }
+        match specifier {
+            0x01 => self.set_nmt(NmtState::Operational),
+            0x02 => self.set_nmt(NmtState::Stopped),
+            0x80 => self.set_nmt(NmtState::PreOperational),
+            0x81 => {
+                self.reset_application();
+                self.reset_communication();
+            }
+            0x82 => self.reset_communication(),
+            _ => {}
+        }
+    }
+
+    fn emcy(&mut self, code: u16) {
+        if self.nmt != NmtState::Stopped {
+            let [lo, hi] = code.to_le_bytes();
+            self.send(0x080, &[lo, hi, self.error_register, 0, 0, 0, 0, 0]);
+        }
+    }
+
+    fn fault(&mut self, code: u16) {
+        self.set_power(PowerState::FaultReactionActive);
+        self.set_power(PowerState::Fault);
+        self.error_register |= 0x01;
+        self.events.push(DriveEvent::Fault {
+            time: self.now,
+            code,
+        });
+        self.emcy(code);
+    }
+
+    /// A controlword written (by SDO or RPDO).
+    fn command(&mut self, word: u16) {
+        let rising_reset = word & 0x80 != 0 && self.controlword & 0x80 == 0;
+        self.controlword = word;
+        if self.power == PowerState::Fault {
+            if rising_reset {
+                self.following_error = false;
+                self.error_register = 0;
+                self.set_power(PowerState::SwitchOnDisabled);
+                self.emcy(0x0000);
+            }
+            return;
+        }
+        if word & 0x80 != 0 {
+            return;
+        }
+        self.set_power(next_power_state(self.power, word));
+    }
+
+    fn sync(&mut self, data: &[u8]) {
+        // SYNC carries nothing, or a one-byte counter.
+        if data.len() > 1 || self.nmt == NmtState::Stopped {
+            return;
+        }
+        if self.nmt == NmtState::Operational {
+            for k in 0..4 {
+                let pdo = &mut self.rpdo[k];
+                if pdo.valid() && pdo.transmission <= 240 {
+                    if let Some(data) = pdo.received.take() {
+                        self.apply_rpdo(k, &data);
+                    }
+                }
+            }
+        }
+        if self.csp_running() {
+            let step = i64::from(self.config.max_step);
+            let gap = i64::from(self.target) - i64::from(self.actual);
+            // Between actual and target, both i32: the sum stays in range.
+            self.actual = (i64::from(self.actual) + gap.clamp(-step, step)) as i32;
+            self.events.push(DriveEvent::Cycle {
+                time: self.now,
+                target: self.target,
+                actual: self.actual,
+            });
+            let error = (i64::from(self.target) - i64::from(self.actual)).unsigned_abs();
+            if self.window != u32::MAX && error > u64::from(self.window) {
+                self.following_error = true;
+                self.fault(EMCY_FOLLOWING_ERROR);
+            }
+        }
+        if self.nmt == NmtState::Operational {
+            for k in 0..4 {
+                let pdo = &mut self.tpdo[k];
+                if !pdo.valid() || pdo.transmission > 240 {
+                    continue;
+                }
+                if pdo.transmission == 0 {
+                    self.send_tpdo(k, true);
+                } else {
+                    pdo.syncs += 1;
+                    if pdo.syncs >= pdo.transmission {
+                        pdo.syncs = 0;
+                        self.send_tpdo(k, false);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Event-driven TPDOs (types 254, 255) whose data changed.
+    fn send_changed_tpdos(&mut self) {
+        if self.nmt != NmtState::Operational {
+            return;
+        }
+        for k in 0..4 {
+            if self.tpdo[k].valid() && self.tpdo[k].transmission >= 254 {
+                self.send_tpdo(k, true);
+            }
+        }
+    }
+
+    /// Sends TPDO `k` (only if its data changed, with `on_change`).
+    fn send_tpdo(&mut self, k: usize, on_change: bool) {
+        let entries: Vec<_> = self.tpdo[k].entries().collect();
+        let mut data = Vec::with_capacity(8);
+        for (index, sub, bytes) in entries {
+            let value = self.entry(index, sub).map_or(0, |entry| entry.value);
+            data.extend_from_slice(&value.to_le_bytes()[..bytes]);
+        }
+        let pdo = &mut self.tpdo[k];
+        if on_change && pdo.last_sent.as_ref() == Some(&data) {
+            return;
+        }
+        let frame = Frame::data(pdo.can_id(), &data);
+        pdo.last_sent = Some(data);
+        self.output.push(frame);
+    }
+
+    fn rpdo_frame(&mut self, id: u16, data: &[u8]) {
+        if self.nmt != NmtState::Operational {
+            return;
+        }
+        let Some(k) = self.rpdo.iter().position(|p| p.valid() && p.can_id() == id) else {
+            return;
+        };
+        let length: usize = self.rpdo[k].entries().map(|(_, _, bytes)| bytes).sum();
+        if data.len() < length {
+            self.emcy(EMCY_PDO_LENGTH);
+            return;
+        }
+        if self.rpdo[k].transmission <= 240 {
+            self.rpdo[k].received = Some(data[..length].to_vec());
+        } else {
+            self.apply_rpdo(k, &data[..length]);
+        }
+    }
+
+    fn apply_rpdo(&mut self, k: usize, data: &[u8]) {
+        let entries: Vec<_> = self.rpdo[k].entries().collect();
+        let mut at = 0;
+        for (index, sub, bytes) in entries {
+            let mut value = [0; 4];
+            value[..bytes].copy_from_slice(&data[at..at + bytes]);
+            at += bytes;
+            // Mapped objects are writable; a value out of range (a mode the drive does
+            // not have) is dropped, as a write of it by SDO would be refused.
+            let _ = self.write(index, sub, u32::from_le_bytes(value));
+        }
+    }
+
+    fn sdo_request(&mut self, data: &[u8]) {
+        if self.nmt == NmtState::Stopped || data.len() != 8 {
+            return;
+        }
+        let index = u16::from_le_bytes([data[1], data[2]]);
+        let sub = data[3];
+        let answer = match data[0] >> 5 {
+            1 => self.sdo_download(data[0], index, sub, &data[4..]),
+            2 => self.sdo_upload(index, sub),
+            4 => return, // the client aborted: nothing to answer
+            _ => Err(abort::COMMAND),
+        };
+        let [lo, hi] = index.to_le_bytes();
+        let reply = match answer {
+            Ok((command, value)) => [command, lo, hi, sub, value[0], value[1], value[2], value[3]],
+            Err(code) => {
+                let c = code.to_le_bytes();
+                [0x80, lo, hi, sub, c[0], c[1], c[2], c[3]]
+            }
+        };
+        self.send(0x580, &reply);
+    }
+
+    fn sdo_download(
+        &mut self,
+        command: u8,
+        index: u16,
+        sub: u8,
+        payload: &[u8],
+    ) -> Result<(u8, [u8; 4]), u32> {
+        if command & 0b10 == 0 {
+            return Err(abort::COMMAND);
+        }
+        let entry = self.entry(index, sub)?;
+        if !entry.writable {
+            return Err(abort::READ_ONLY);
+        }
+        if command & 0b01 != 0 {
+            let given = 4 - usize::from((command >> 2) & 0b11);
+            if given > entry.size {
+                return Err(abort::TOO_LONG);
+            }
+            if given < entry.size {
+                return Err(abort::TOO_SHORT);
+            }
+        }
+        let mut value = [0; 4];
+        value[..entry.size].copy_from_slice(&payload[..entry.size]);
+        self.write(index, sub, u32::from_le_bytes(value))?;
+        Ok((0x60, [0; 4]))
+    }
+
+    fn sdo_upload(&self, index: u16, sub: u8) -> Result<(u8, [u8; 4]), u32> {
+        let entry = self.entry(index, sub)?;
+        let command = 0x43 | ((4 - entry.size as u8) << 2);
+        let mut value = entry.value.to_le_bytes();
+        value[entry.size..].fill(0);
+        Ok((command, value))
+    }
+
+    /// The object dictionary.
+    fn entry(&self, index: u16, sub: u8) -> Result<Entry, u32> {
+        let var = |size, writable, value| {
+            if sub == 0 {
+                Ok(Entry {
+                    size,
+                    writable,
+                    value,
+                })
+            } else {
+                Err(abort::NO_SUB)
+            }
+        };
+        match index {
+            0x1000 => var(4, false, DEVICE_TYPE),
+            0x1001 => var(1, false, self.error_register.into()),
+            0x1017 => var(2, true, self.heartbeat_ms.into()),
+            0x6040 => var(2, true, self.controlword.into()),
+            0x6041 => var(2, false, self.statusword().into()),
+            0x6060 => var(1, true, u32::from(self.mode as u8)),
+            0x6061 => var(1, false, u32::from(self.mode as u8)),
+            0x6064 => var(4, false, self.actual as u32),
+            0x6065 => var(4, true, self.window),
+            0x607A => var(4, true, self.target as u32),
+            0x1400..=0x1403 | 0x1800..=0x1803 => {
+                let pdo = self.pdo(index);
+                let (size, writable, value) = match sub {
+                    0 => (1, false, 2),
+                    1 => (4, true, pdo.cob_id),
+                    2 => (1, true, pdo.transmission.into()),
+                    _ => return Err(abort::NO_SUB),
+                };
+                Ok(Entry {
+                    size,
+                    writable,
+                    value,
+                })
+            }
+            0x1600..=0x1603 | 0x1A00..=0x1A03 => {
+                let pdo = self.pdo(index);
+                match sub {
+                    0 => Ok(Entry {
+                        size: 1,
+                        writable: true,
+                        value: pdo.count.into(),
+                    }),
+                    1..=8 => Ok(Entry {
+                        size: 4,
+                        writable: true,
+                        value: pdo.map[usize::from(sub) - 1],
+                    }),
+                    _ => Err(abort::NO_SUB),
+                }
+            }
+            _ => Err(abort::NO_OBJECT),
+        }
+    }
+
+    /// The PDO behind a communication or mapping index (1400h…1A03h).
+    fn pdo(&self, index: u16) -> &Pdo {
+        let k = usize::from(index & 0x3);
+        if index < 0x1800 {
+            &self.rpdo[k]
+        } else {
+            &self.tpdo[k]
+        }
+    }
+
+    fn pdo_mut(&mut self, index: u16) -> &mut Pdo {
+        let k = usize::from(index & 0x3);
+        if index < 0x1800 {
+            &mut self.rpdo[k]
+        } else {
+            &mut self.tpdo[k]
+        }
+    }
+
+    /// Writes a writable object (its existence and size already checked).
+    fn write(&mut self, index: u16, sub: u8, value: u32) -> Result<(), u32> {
+        match index {
+            0x1017 => {
+                self.heartbeat_ms = value as u16;
+                self.restart_heartbeat();
+            }
+            0x6040 => self.command(value as u16),
+            0x6060 => match value as u8 as i8 {
+                mode @ (0 | 8) => self.mode = mode,
+                _ => return Err(abort::INVALID),
+            },
+            0x6065 => self.window = value,
+            0x607A => self.target = value as i32,
+            0x1400..=0x1403 | 0x1800..=0x1803 => self.write_communication(index, sub, value)?,
+            0x1600..=0x1603 | 0x1A00..=0x1A03 => self.write_mapping(index, sub, value)?,
+            _ => return Err(abort::READ_ONLY),
+        }
+        Ok(())
+    }
+
+    fn write_communication(&mut self, index: u16, sub: u8, value: u32) -> Result<(), u32> {
+        let pdo = self.pdo_mut(index);
+        if sub == 2 {
+            let kind = value as u8;
+            if (241..=253).contains(&kind) {
+                return Err(abort::INVALID);
+            }
+            pdo.transmission = kind;
+            return Ok(());
+        }
+        // Sub-index 1, the COB-ID: bits 11–29 must be 0 (11-bit identifiers only).
+        let valid = value & 0x8000_0000 == 0;
+        let id = value & 0x7FF;
+        if value & 0x3FFF_F800 != 0 {
+            return Err(abort::INVALID);
+        }
+        if valid && (pdo.count == 0 || id == 0 || (pdo.valid() && id != u32::from(pdo.can_id()))) {
+            return Err(abort::INVALID);
+        }
+        pdo.cob_id = value;
+        pdo.syncs = 0;
+        pdo.last_sent = None;
+        pdo.received = None;
+        Ok(())
+    }
+
+    fn write_mapping(&mut self, index: u16, sub: u8, value: u32) -> Result<(), u32> {
+        let receive = index < 0x1800;
+        let pdo = self.pdo_mut(index);
+        if pdo.valid() || (sub != 0 && pdo.count != 0) {
+            return Err(abort::UNSUPPORTED);
+        }
+        if sub != 0 {
+            if !mappable(receive, value) {
+                return Err(abort::CANNOT_MAP);
+            }
+            pdo.map[usize::from(sub) - 1] = value;
+            return Ok(());
+        }
+        let count = value as u8;
+        if count > 8 {
+            return Err(abort::MAP_TOO_LONG);
+        }
+        let entries = &pdo.map[..usize::from(count)];
+        if !entries.iter().all(|raw| mappable(receive, *raw)) {
+            return Err(abort::CANNOT_MAP);
+        }
+        if entries.iter().map(|raw| raw & 0xFF).sum::<u32>() > 64 {
+            return Err(abort::MAP_TOO_LONG);
+        }
+        pdo.count = count;
+        Ok(())
+    }
+}
+
+/// The objects a PDO can carry, as mapping values (index, sub-index 0, bit length).
+fn mappable(receive: bool, raw: u32) -> bool {
+    let allowed: [u32; 3] = if receive {
+        [0x6040_0010, 0x607A_0020, 0x6060_0008]
+    } else {
+        [0x6041_0010, 0x6064_0020, 0x6061_0008]
+    };
+    allowed.contains(&raw)
+}
+
+/// Power-on PDOs: RPDO1 = controlword + target, TPDO1 = statusword + actual position,
+/// both every SYNC; the rest invalid on their predefined identifiers.
+fn default_pdos(node: u8) -> ([Pdo; 4], [Pdo; 4]) {
+    let node = u32::from(node);
+    let invalid = |base: u32| Pdo::new(0x8000_0000 | (base + node), 0xFF, &[]);
+    let rpdo = [
+        Pdo::new(0x200 + node, 1, &[0x6040_0010, 0x607A_0020]),
+        invalid(0x300),
+        invalid(0x400),
+        invalid(0x500),
+    ];
+    // TPDOs without remote request (COB-ID bit 30): the sim answers none.
+    let tpdo = [
+        Pdo::new(0x4000_0000 | (0x180 + node), 1, &[0x6041_0010, 0x6064_0020]),
+        invalid(0x4000_0280),
+        invalid(0x4000_0380),
+        invalid(0x4000_0480),
+    ];
+    (rpdo, tpdo)
+}
+
+/// CiA 402's transitions caused by a controlword with bit 7 low.
+fn next_power_state(state: PowerState, word: u16) -> PowerState {
+    use PowerState::*;
+    let bits = word & 0x0F;
+    let disable_voltage = bits & 0b0010 == 0;
+    let quick_stop = !disable_voltage && bits & 0b0100 == 0;
+    let shutdown = bits & 0b0111 == 0b0110;
+    let switch_on = bits == 0b0111;
+    let enable = bits == 0b1111;
+    match state {
+        SwitchOnDisabled if shutdown => ReadyToSwitchOn,
+        ReadyToSwitchOn if switch_on => SwitchedOn,
+        ReadyToSwitchOn if enable => OperationEnabled,
+        SwitchedOn if enable => OperationEnabled,
+        ReadyToSwitchOn | SwitchedOn if disable_voltage || quick_stop => SwitchOnDisabled,
+        SwitchedOn | OperationEnabled if shutdown => ReadyToSwitchOn,
+        OperationEnabled if switch_on => SwitchedOn,
+        OperationEnabled if disable_voltage => SwitchOnDisabled,
+        OperationEnabled if quick_stop => QuickStopActive,
+        QuickStopActive if disable_voltage => SwitchOnDisabled,
+        QuickStopActive if enable => OperationEnabled,
+        other => other,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MS: Duration = Duration::from_millis(1);
+
+    fn booted(config: DriveConfig) -> Drive {
+        let mut drive = Drive::new(config).unwrap();
+        drive.take_output();
+        drive.take_events();
+        drive
+    }
+
+    /// Node 1, started (Operational), output drained.
+    fn operational() -> Drive {
+        let mut drive = booted(DriveConfig::new(1));
+        drive.receive(&Frame::data(0x000, &[0x01, 0x01]));
+        drive.take_output();
+        drive
+    }
+
+    /// Sends an SDO request to node 1 and returns the 8 answer bytes, if any.
+    fn sdo(drive: &mut Drive, request: [u8; 8]) -> Option<Vec<u8>> {
+        drive.receive(&Frame::data(0x601, &request));
+        let answers: Vec<Frame> = drive
+            .take_output()
+            .into_iter()
+            .filter(|f| f.id == 0x581)
+            .collect();
+        assert!(answers.len() <= 1);
+        answers.into_iter().next().map(|f| f.data)
+    }
+
+    /// Expedited download of `size` bytes of `value`; `Err(abort code)` on abort.
+    fn write(drive: &mut Drive, index: u16, sub: u8, value: u32, size: u8) -> Result<(), u32> {
+        let [lo, hi] = index.to_le_bytes();
+        let v = value.to_le_bytes();
+        let command = 0x23 | ((4 - size) << 2);
+        let answer = sdo(drive, [command, lo, hi, sub, v[0], v[1], v[2], v[3]]).unwrap();
+        match answer[0] {
+            0x60 => {
+                assert_eq!(answer, [0x60, lo, hi, sub, 0, 0, 0, 0]);
+                Ok(())
+            }
+            0x80 => Err(u32::from_le_bytes([
+                answer[4], answer[5], answer[6], answer[7],
+            ])),
+            other => panic!("answer {other:02X}"),
+        }
+    }
+
+    /// Expedited upload: (command byte, value) or `Err(abort code)`.
+    fn read(drive: &mut Drive, index: u16, sub: u8) -> Result<(u8, u32), u32> {
+        let [lo, hi] = index.to_le_bytes();
+        let answer = sdo(drive, [0x40, lo, hi, sub, 0, 0, 0, 0]).unwrap();
+        let value = u32::from_le_bytes([answer[4], answer[5], answer[6], answer[7]]);
+        if answer[0] == 0x80 {
+            Err(value)
+        } else {
+            Ok((answer[0], value))
+        }
+    }
+
+    fn sync(drive: &mut Drive) -> Vec<Frame> {
+        drive.receive(&Frame::data(0x080, &[]));
+        drive.take_output()
+    }
+
+    /// RPDO1 with controlword and target, as mapped at power-up.
+    fn rpdo1(drive: &mut Drive, controlword: u16, target: i32) {
+        let mut data = controlword.to_le_bytes().to_vec();
+        data.extend_from_slice(&target.to_le_bytes());
+        drive.receive(&Frame::data(0x201, &data));
+    }
+
+    /// Walks to Operation enabled in CSP through RPDO1 on SYNC.
+    fn enabled() -> Drive {
+        let mut drive = operational();
+        write(&mut drive, 0x6060, 0, 8, 1).unwrap();
+        for word in [0x06, 0x07, 0x0F] {
+            rpdo1(&mut drive, word, 0);
+            sync(&mut drive);
+        }
+        assert_eq!(drive.power_state(), PowerState::OperationEnabled);
+        drive
+    }
+
+    #[test]
+    fn power_up_sends_boot_up_and_waits_pre_operational() {
+        let mut drive = Drive::new(DriveConfig::new(3)).unwrap();
+        // CiA 301: boot-up is one byte 0x00 on 0x700 + node.
+        assert_eq!(drive.take_output(), [Frame::data(0x703, &[0x00])]);
+        assert_eq!(drive.nmt_state(), NmtState::PreOperational);
+        // CiA 402: Not ready to switch on and on to Switch on disabled by itself.
+        assert_eq!(drive.power_state(), PowerState::SwitchOnDisabled);
+        assert_eq!(drive.statusword(), 0x0250);
+        assert_eq!(
+            drive.take_events(),
+            [
+                DriveEvent::Power {
+                    time: Duration::ZERO,
+                    state: PowerState::SwitchOnDisabled
+                },
+                DriveEvent::Nmt {
+                    time: Duration::ZERO,
+                    state: NmtState::PreOperational
+                },
+            ]
+        );
+        assert_eq!(
+            Drive::new(DriveConfig::new(0)).unwrap_err(),
+            DriveConfigError::NodeId(0)
+        );
+        assert!(Drive::new(DriveConfig::new(128)).is_err());
+        assert!(Drive::new(DriveConfig::new(127)).is_ok());
+    }
+
+    #[test]
+    fn nmt_commands_move_the_node() {
+        let mut drive = booted(DriveConfig::new(2));
+        // For another node, the wrong length, an unknown specifier: nothing.
+        for data in [
+            &[0x01, 0x03][..],
+            &[0x01],
+            &[0x01, 0x02, 0x00],
+            &[0x03, 0x02],
+        ] {
+            drive.receive(&Frame::data(0x000, data));
+            assert_eq!(drive.nmt_state(), NmtState::PreOperational);
+        }
+        drive.receive(&Frame::data(0x000, &[0x01, 0x02]));
+        assert_eq!(drive.nmt_state(), NmtState::Operational);
+        drive.receive(&Frame::data(0x000, &[0x02, 0x00])); // all nodes
+        assert_eq!(drive.nmt_state(), NmtState::Stopped);
+        drive.receive(&Frame::data(0x000, &[0x80, 0x02]));
+        assert_eq!(drive.nmt_state(), NmtState::PreOperational);
+        drive.receive(&Frame::data(0x000, &[0x01, 0x00]));
+        assert_eq!(drive.nmt_state(), NmtState::Operational);
+        // Reset communication: boot-up again, Pre-operational.
+        drive.take_output();
+        drive.receive(&Frame::data(0x000, &[0x82, 0x02]));
+        assert_eq!(drive.take_output(), [Frame::data(0x702, &[0x00])]);
+        assert_eq!(drive.nmt_state(), NmtState::PreOperational);
+    }
+
+    #[test]
+    fn resets_restore_their_objects() {
+        let mut drive = booted(DriveConfig::new(1));
+        write(&mut drive, 0x1017, 0, 100, 2).unwrap();
+        write(&mut drive, 0x6060, 0, 8, 1).unwrap();
+        write(&mut drive, 0x6040, 0, 0x06, 2).unwrap();
+        write(&mut drive, 0x1800, 1, 0xC000_0181, 4).unwrap();
+        // Reset communication: 1017h and the PDOs, not the profile's objects.
+        drive.receive(&Frame::data(0x000, &[0x82, 0x01]));
+        drive.take_output();
+        assert_eq!(read(&mut drive, 0x1017, 0), Ok((0x4B, 0)));
+        assert_eq!(read(&mut drive, 0x1800, 1), Ok((0x43, 0x4000_0181)));
+        assert_eq!(read(&mut drive, 0x6060, 0), Ok((0x4F, 8)));
+        assert_eq!(drive.power_state(), PowerState::ReadyToSwitchOn);
+        // Reset node: the profile's objects too.
+        drive.receive(&Frame::data(0x000, &[0x81, 0x01]));
+        assert_eq!(drive.take_output(), [Frame::data(0x701, &[0x00])]);
+        assert_eq!(read(&mut drive, 0x6060, 0), Ok((0x4F, 0)));
+        assert_eq!(read(&mut drive, 0x6040, 0), Ok((0x4B, 0)));
+        assert_eq!(drive.power_state(), PowerState::SwitchOnDisabled);
+    }
+
+    #[test]
+    fn heartbeats_follow_1017h() {
+        let mut drive = booted(DriveConfig::new(1));
+        drive.advance(Duration::from_secs(10));
+        assert!(drive.take_output().is_empty(), "1017h = 0: no heartbeat");
+        write(&mut drive, 0x1017, 0, 100, 2).unwrap();
+        drive.advance(250 * MS);
+        // At 10.1 s and 10.2 s, the Pre-operational byte 0x7F.
+        assert_eq!(drive.take_output(), vec![Frame::data(0x701, &[0x7F]); 2]);
+        drive.receive(&Frame::data(0x000, &[0x01, 0x01]));
+        drive.take_output();
+        drive.advance(50 * MS);
+        assert_eq!(drive.take_output(), [Frame::data(0x701, &[0x05])]);
+        drive.receive(&Frame::data(0x000, &[0x02, 0x01]));
+        drive.advance(100 * MS);
+        assert_eq!(drive.take_output(), [Frame::data(0x701, &[0x04])]);
+        assert_eq!(drive.now(), Duration::from_millis(10_400));
+        // A configured power-on period starts at boot-up.
+        let mut beating = booted(DriveConfig {
+            heartbeat_ms: 20,
+            ..DriveConfig::new(4)
+        });
+        beating.advance(19 * MS);
+        assert!(beating.take_output().is_empty());
+        beating.advance(MS);
+        assert_eq!(beating.take_output(), [Frame::data(0x704, &[0x7F])]);
+    }
+
+    #[test]
+    fn stopped_serves_no_sdo_and_no_sync() {
+        let mut drive = operational();
+        drive.receive(&Frame::data(0x000, &[0x02, 0x01]));
+        assert_eq!(sdo(&mut drive, [0x40, 0x41, 0x60, 0, 0, 0, 0, 0]), None);
+        assert!(sync(&mut drive).is_empty());
+    }
+
+    #[test]
+    fn uploads_answer_with_the_objects_size() {
+        let mut drive = booted(DriveConfig {
+            position: -5,
+            ..DriveConfig::new(1)
+        });
+        // n = 4 − size in bits 3–2: 0x43 four bytes, 0x4B two, 0x4F one.
+        assert_eq!(read(&mut drive, 0x1000, 0), Ok((0x43, 0x0002_0192)));
+        assert_eq!(read(&mut drive, 0x1001, 0), Ok((0x4F, 0)));
+        assert_eq!(read(&mut drive, 0x6041, 0), Ok((0x4B, 0x0250)));
+        assert_eq!(read(&mut drive, 0x6061, 0), Ok((0x4F, 0)));
+        assert_eq!(read(&mut drive, 0x6064, 0), Ok((0x43, -5i32 as u32)));
+        assert_eq!(read(&mut drive, 0x607A, 0), Ok((0x43, -5i32 as u32)));
+        assert_eq!(read(&mut drive, 0x6065, 0), Ok((0x43, 10_000)));
+        assert_eq!(read(&mut drive, 0x1400, 0), Ok((0x4F, 2)));
+        assert_eq!(read(&mut drive, 0x1400, 1), Ok((0x43, 0x201)));
+        assert_eq!(read(&mut drive, 0x1401, 1), Ok((0x43, 0x8000_0301)));
+        assert_eq!(read(&mut drive, 0x1800, 2), Ok((0x4F, 1)));
+        assert_eq!(read(&mut drive, 0x1600, 0), Ok((0x4F, 2)));
+        assert_eq!(read(&mut drive, 0x1600, 2), Ok((0x43, 0x607A_0020)));
+        assert_eq!(read(&mut drive, 0x1A00, 1), Ok((0x43, 0x6041_0010)));
+        assert_eq!(read(&mut drive, 0x1A03, 0), Ok((0x4F, 0)));
+    }
+
+    #[test]
+    fn sdo_aborts_carry_cia_301_codes() {
+        let mut drive = booted(DriveConfig::new(1));
+        assert_eq!(read(&mut drive, 0x2000, 0), Err(0x0602_0000));
+        assert_eq!(read(&mut drive, 0x1404, 1), Err(0x0602_0000));
+        assert_eq!(read(&mut drive, 0x6041, 1), Err(0x0609_0011));
+        assert_eq!(read(&mut drive, 0x1800, 3), Err(0x0609_0011));
+        assert_eq!(read(&mut drive, 0x1A00, 9), Err(0x0609_0011));
+        assert_eq!(write(&mut drive, 0x6041, 0, 0, 2), Err(0x0601_0002));
+        assert_eq!(write(&mut drive, 0x1000, 0, 0, 4), Err(0x0601_0002));
+        assert_eq!(write(&mut drive, 0x1800, 0, 5, 1), Err(0x0601_0002));
+        assert_eq!(write(&mut drive, 0x607A, 0, 0, 2), Err(0x0607_0013));
+        assert_eq!(write(&mut drive, 0x6040, 0, 6, 4), Err(0x0607_0012));
+        assert_eq!(write(&mut drive, 0x6060, 0, 7, 1), Err(0x0609_0030));
+        assert_eq!(write(&mut drive, 0x6060, 0, 0xFF, 1), Err(0x0609_0030));
+        // A segmented download (e = 0) and the segment services are not served.
+        let segmented = [0x21, 0x7A, 0x60, 0, 4, 0, 0, 0];
+        let upload_segment = [0x60, 0x7A, 0x60, 0, 0, 0, 0, 0];
+        for request in [segmented, upload_segment] {
+            assert_eq!(
+                sdo(&mut drive, request),
+                Some(vec![0x80, 0x7A, 0x60, 0, 0x01, 0x00, 0x04, 0x05])
+            );
+        }
+        // A client's abort gets no answer; neither does a frame that is not 8 bytes.
+        assert_eq!(sdo(&mut drive, [0x80, 0x7A, 0x60, 0, 0, 0, 0, 0x08]), None);
+        drive.receive(&Frame::data(0x601, &[0x40, 0x41, 0x60, 0]));
+        assert!(drive.take_output().is_empty());
+    }
+
+    #[test]
+    fn a_download_without_size_takes_the_objects_bytes() {
+        let mut drive = booted(DriveConfig::new(1));
+        // e = 1, s = 0: "unspecified number of bytes"; 607Ah takes all four.
+        let answer = sdo(&mut drive, [0x22, 0x7A, 0x60, 0, 0x10, 0x27, 0, 0]);
+        assert_eq!(answer, Some(vec![0x60, 0x7A, 0x60, 0, 0, 0, 0, 0]));
+        assert_eq!(drive.target(), 10_000);
+        // 6060h takes one: the bytes after it do not matter.
+        sdo(&mut drive, [0x22, 0x60, 0x60, 0, 8, 0xAA, 0xBB, 0xCC]);
+        assert_eq!(read(&mut drive, 0x6061, 0), Ok((0x4F, 8)));
+    }
+
+    #[test]
+    fn the_power_state_machine_follows_the_controlword() {
+        use PowerState::*;
+        let mut drive = booted(DriveConfig::new(1));
+        let mut step = |word: u32, expected: PowerState, statusword: u16| {
+            write(&mut drive, 0x6040, 0, word, 2).unwrap();
+            assert_eq!(drive.power_state(), expected, "after {word:02X}");
+            assert_eq!(drive.statusword(), statusword, "after {word:02X}");
+        };
+        step(0x07, SwitchOnDisabled, 0x0250); // switch on is not transition 2
+        step(0x06, ReadyToSwitchOn, 0x0231); // 2
+        step(0x07, SwitchedOn, 0x0233); // 3
+        step(0x0F, OperationEnabled, 0x0237); // 4 (no mode: bit 12 clear)
+        step(0x07, SwitchedOn, 0x0233); // 5
+        step(0x06, ReadyToSwitchOn, 0x0231); // 6
+        step(0x00, SwitchOnDisabled, 0x0250); // 7
+        step(0x06, ReadyToSwitchOn, 0x0231);
+        step(0x0F, OperationEnabled, 0x0237); // 3 + 4
+        step(0x06, ReadyToSwitchOn, 0x0231); // 8
+        step(0x0F, OperationEnabled, 0x0237);
+        step(0x00, SwitchOnDisabled, 0x0250); // 9
+        step(0x06, ReadyToSwitchOn, 0x0231);
+        step(0x07, SwitchedOn, 0x0233);
+        step(0x02, SwitchOnDisabled, 0x0250); // 10
+        step(0x06, ReadyToSwitchOn, 0x0231);
+        step(0x0F, OperationEnabled, 0x0237);
+        step(0x02, QuickStopActive, 0x0217); // 11
+        step(0x06, QuickStopActive, 0x0217); // shutdown does not leave it
+        step(0x0F, OperationEnabled, 0x0237); // 16
+        step(0x0B, QuickStopActive, 0x0217); // quick stop with enable operation set
+        step(0x00, SwitchOnDisabled, 0x0250); // 12
+        step(0x86, SwitchOnDisabled, 0x0250); // bit 7 high: no command acts
+    }
+
+    #[test]
+    fn rpdo1_is_applied_at_sync_and_tpdo1_answers() {
+        let mut drive = enabled();
+        // Received between SYNCs, applied only at the next one; the last one wins.
+        rpdo1(&mut drive, 0x0F, 300);
+        rpdo1(&mut drive, 0x0F, 400);
+        assert_eq!(drive.target(), 0);
+        let frames = sync(&mut drive);
+        assert_eq!(drive.target(), 400);
+        assert_eq!(drive.position(), 400);
+        // TPDO1: statusword 0x1237 (bit 12: following the target), position 400.
+        assert_eq!(
+            frames,
+            [Frame::data(0x181, &[0x37, 0x12, 0x90, 0x01, 0, 0])]
+        );
+        // At most max_step (1000) counts a cycle.
+        rpdo1(&mut drive, 0x0F, -2000);
+        sync(&mut drive);
+        assert_eq!(drive.position(), -600);
+        sync(&mut drive);
+        assert_eq!(drive.position(), -1600);
+        let cycles: Vec<_> = drive
+            .take_events()
+            .into_iter()
+            .filter_map(|e| match e {
+                DriveEvent::Cycle { target, actual, .. } => Some((target, actual)),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(
+            cycles[cycles.len() - 3..],
+            [(400, 400), (-2000, -600), (-2000, -1600)]
+        );
+    }
+
+    #[test]
+    fn pdos_only_run_in_operational() {
+        let mut drive = booted(DriveConfig::new(1));
+        rpdo1(&mut drive, 0x06, 0);
+        assert!(sync(&mut drive).is_empty(), "no TPDO in Pre-operational");
+        assert_eq!(drive.power_state(), PowerState::SwitchOnDisabled);
+        // An RPDO received in Operational but not applied is dropped on leaving it.
+        drive.receive(&Frame::data(0x000, &[0x01, 0x01]));
+        rpdo1(&mut drive, 0x06, 0);
+        drive.receive(&Frame::data(0x000, &[0x80, 0x01]));
+        drive.receive(&Frame::data(0x000, &[0x01, 0x01]));
+        sync(&mut drive);
+        assert_eq!(drive.power_state(), PowerState::SwitchOnDisabled);
+        // SYNC with a counter byte is a SYNC; with more it is not.
+        assert_eq!(drive.take_output().len(), 0);
+        drive.receive(&Frame::data(0x080, &[7]));
+        assert_eq!(drive.take_output().len(), 1);
+        drive.receive(&Frame::data(0x080, &[7, 7]));
+        assert!(drive.take_output().is_empty());
+    }
+
+    #[test]
+    fn a_short_rpdo_is_dropped_with_emcy_8210() {
+        let mut drive = operational();
+        drive.receive(&Frame::data(0x201, &[0x06, 0x00, 0x00]));
+        assert_eq!(
+            drive.take_output(),
+            [Frame::data(0x081, &[0x10, 0x82, 0, 0, 0, 0, 0, 0])]
+        );
+        sync(&mut drive);
+        assert_eq!(drive.power_state(), PowerState::SwitchOnDisabled);
+        // Extra bytes are ignored.
+        drive.receive(&Frame::data(0x201, &[0x06, 0, 0, 0, 0, 0, 0xFF, 0xFF]));
+        sync(&mut drive);
+        assert_eq!(drive.power_state(), PowerState::ReadyToSwitchOn);
+    }
+
+    #[test]
+    fn a_following_error_faults_with_emcy_8611_until_reset() {
+        let mut drive = booted(DriveConfig {
+            max_step: 10,
+            following_error_window: 100,
+            ..DriveConfig::new(1)
+        });
+        drive.receive(&Frame::data(0x000, &[0x01, 0x01]));
+        write(&mut drive, 0x6060, 0, 8, 1).unwrap();
+        for word in [0x06, 0x07, 0x0F] {
+            rpdo1(&mut drive, word, 0);
+            sync(&mut drive);
+        }
+        // 110 counts away: after one 10-count cycle 100 remain, within the window; then
+        // 500 away: 480 remain.
+        rpdo1(&mut drive, 0x0F, 110);
+        sync(&mut drive);
+        assert_eq!(drive.power_state(), PowerState::OperationEnabled);
+        rpdo1(&mut drive, 0x0F, 500);
+        let frames = sync(&mut drive);
+        assert_eq!(drive.position(), 20);
+        // EMCY 8611h with error register bit 0, then TPDO1 showing Fault (x0xx 1000) with
+        // bit 13, following error.
+        assert_eq!(
+            frames,
+            [
+                Frame::data(0x081, &[0x11, 0x86, 0x01, 0, 0, 0, 0, 0]),
+                Frame::data(0x181, &[0x18, 0x22, 20, 0, 0, 0]),
+            ]
+        );
+        assert_eq!(read(&mut drive, 0x1001, 0), Ok((0x4F, 0x01)));
+        assert!(drive.take_events().contains(&DriveEvent::Fault {
+            time: Duration::ZERO,
+            code: 0x8611
+        }));
+        // The fault holds: nothing moves, enable does nothing.
+        rpdo1(&mut drive, 0x0F, 500);
+        sync(&mut drive);
+        assert_eq!(
+            (drive.power_state(), drive.position()),
+            (PowerState::Fault, 20)
+        );
+        // Fault reset on the rising edge of bit 7: EMCY 0000h, Switch on disabled.
+        rpdo1(&mut drive, 0x80, 20);
+        let frames = sync(&mut drive);
+        assert_eq!(frames[0], Frame::data(0x081, &[0; 8]));
+        assert_eq!(drive.power_state(), PowerState::SwitchOnDisabled);
+        assert_eq!(drive.statusword(), 0x0250);
+        assert_eq!(read(&mut drive, 0x1001, 0), Ok((0x4F, 0)));
+    }
+
+    #[test]
+    fn fault_reset_needs_an_edge() {
+        let mut drive = enabled();
+        write(&mut drive, 0x6065, 0, 0, 4).unwrap();
+        write(&mut drive, 0x6040, 0, 0x80, 2).unwrap(); // bit 7 high before the fault
+        rpdo1(&mut drive, 0x80, 5000);
+        sync(&mut drive);
+        // 0x80 did not count as a command: the drive kept running, 1000 counts a cycle,
+        // and faulted with a window of 0.
+        assert_eq!(drive.power_state(), PowerState::Fault);
+        write(&mut drive, 0x6040, 0, 0x80, 2).unwrap();
+        assert_eq!(drive.power_state(), PowerState::Fault, "no edge");
+        write(&mut drive, 0x6040, 0, 0x00, 2).unwrap();
+        write(&mut drive, 0x6040, 0, 0x80, 2).unwrap();
+        assert_eq!(drive.power_state(), PowerState::SwitchOnDisabled);
+    }
+
+    #[test]
+    fn window_ffffffff_switches_the_check_off() {
+        let mut drive = booted(DriveConfig {
+            max_step: 1,
+            ..DriveConfig::new(1)
+        });
+        drive.receive(&Frame::data(0x000, &[0x01, 0x01]));
+        write(&mut drive, 0x6065, 0, u32::MAX, 4).unwrap();
+        write(&mut drive, 0x6060, 0, 8, 1).unwrap();
+        for word in [0x06, 0x07, 0x0F] {
+            rpdo1(&mut drive, word, 0);
+            sync(&mut drive);
+        }
+        rpdo1(&mut drive, 0x0F, i32::MAX);
+        sync(&mut drive);
+        assert_eq!(drive.power_state(), PowerState::OperationEnabled);
+        assert_eq!(drive.position(), 1);
+    }
+
+    #[test]
+    fn remapping_follows_the_procedure() {
+        let mut drive = operational();
+        let w = |drive: &mut Drive, index, sub, value, size| write(drive, index, sub, value, size);
+        // Mapping while the PDO is valid: refused.
+        assert_eq!(w(&mut drive, 0x1A00, 0, 0, 1), Err(0x0601_0000));
+        assert_eq!(w(&mut drive, 0x1A00, 1, 0x6064_0020, 4), Err(0x0601_0000));
+        // Destroy, transmission type 2, clear, map position only, count, create.
+        w(&mut drive, 0x1800, 1, 0xC000_0181, 4).unwrap();
+        w(&mut drive, 0x1800, 2, 2, 1).unwrap();
+        // An entry while sub-index 0 is not 0: refused.
+        assert_eq!(w(&mut drive, 0x1A00, 1, 0x6064_0020, 4), Err(0x0601_0000));
+        w(&mut drive, 0x1A00, 0, 0, 1).unwrap();
+        // Enabling with nothing mapped: refused.
+        assert_eq!(w(&mut drive, 0x1800, 1, 0x4000_0181, 4), Err(0x0609_0030));
+        w(&mut drive, 0x1A00, 1, 0x6064_0020, 4).unwrap();
+        w(&mut drive, 0x1A00, 0, 1, 1).unwrap();
+        w(&mut drive, 0x1800, 1, 0x4000_0181, 4).unwrap();
+        // Type 2: every second SYNC, four bytes of position.
+        assert!(sync(&mut drive).is_empty());
+        assert_eq!(sync(&mut drive), [Frame::data(0x181, &[0, 0, 0, 0])]);
+        assert!(sync(&mut drive).is_empty());
+        // A valid PDO's identifier cannot change.
+        assert_eq!(w(&mut drive, 0x1800, 1, 0x4000_0191, 4), Err(0x0609_0030));
+    }
+
+    #[test]
+    fn impossible_mappings_are_refused() {
+        let mut drive = operational();
+        write(&mut drive, 0x1400, 1, 0x8000_0201, 4).unwrap();
+        write(&mut drive, 0x1600, 0, 0, 1).unwrap();
+        let cases = [
+            (1, 0x6041_0010, 0x0604_0041), // a TPDO object in an RPDO
+            (1, 0x6065_0020, 0x0604_0041), // not mappable at all
+            (1, 0x607A_0010, 0x0604_0041), // wrong length
+            (0, 9, 0x0604_0042),           // nine entries
+            (0, 3, 0x0604_0041),           // counting an entry never written
+        ];
+        for (sub, value, code) in cases {
+            let size = if sub == 0 { 1 } else { 4 };
+            assert_eq!(write(&mut drive, 0x1600, sub, value, size), Err(code));
+        }
+        // Three entries of 80 bits in all.
+        for (sub, value) in [(1, 0x607A_0020), (2, 0x607A_0020), (3, 0x6040_0010)] {
+            write(&mut drive, 0x1600, sub, value, 4).unwrap();
+        }
+        assert_eq!(write(&mut drive, 0x1600, 0, 3, 1), Err(0x0604_0042));
+        write(&mut drive, 0x1600, 0, 2, 1).unwrap();
+        // COB-IDs: 29-bit (bit 29), bits 11–28, identifier 0; transmission types.
+        for cob in [0x2000_0201, 0x0000_0A01, 0x0000_0000] {
+            assert_eq!(write(&mut drive, 0x1400, 1, cob, 4), Err(0x0609_0030));
+        }
+        for kind in [241, 252, 253] {
+            assert_eq!(write(&mut drive, 0x1400, 2, kind, 1), Err(0x0609_0030));
+        }
+        for kind in [0, 240, 254, 255] {
+            assert_eq!(write(&mut drive, 0x1400, 2, kind, 1), Ok(()));
+        }
+    }
+
+    #[test]
+    fn asynchronous_pdos_act_on_change() {
+        let mut drive = operational();
+        // RPDO1 asynchronous (255): applied on receipt, no SYNC needed.
+        write(&mut drive, 0x1400, 1, 0x8000_0201, 4).unwrap();
+        write(&mut drive, 0x1400, 2, 255, 1).unwrap();
+        write(&mut drive, 0x1400, 1, 0x0000_0201, 4).unwrap();
+        rpdo1(&mut drive, 0x06, 0);
+        assert_eq!(drive.power_state(), PowerState::ReadyToSwitchOn);
+        // TPDO1 event-driven (255): sent when the statusword changes, not on SYNC.
+        write(&mut drive, 0x1800, 1, 0xC000_0181, 4).unwrap();
+        write(&mut drive, 0x1800, 2, 255, 1).unwrap();
+        drive.take_output();
+        drive.receive(&Frame::data(
+            0x601,
+            &[0x23, 0x00, 0x18, 1, 0x81, 0x01, 0, 0x40],
+        ));
+        let out = drive.take_output();
+        assert_eq!(out[1], Frame::data(0x181, &[0x31, 0x02, 0, 0, 0, 0]));
+        assert!(sync(&mut drive).is_empty());
+        rpdo1(&mut drive, 0x07, 0);
+        assert_eq!(
+            drive.take_output(),
+            [Frame::data(0x181, &[0x33, 0x02, 0, 0, 0, 0])]
+        );
+        // Acyclic synchronous (0): at a SYNC, only if changed.
+        write(&mut drive, 0x1800, 1, 0xC000_0181, 4).unwrap();
+        write(&mut drive, 0x1800, 2, 0, 1).unwrap();
+        write(&mut drive, 0x1800, 1, 0x4000_0181, 4).unwrap();
+        assert_eq!(sync(&mut drive).len(), 1);
+        assert!(sync(&mut drive).is_empty());
+        rpdo1(&mut drive, 0x06, 0);
+        assert_eq!(sync(&mut drive).len(), 1);
+    }
+
+    #[test]
+    fn frames_that_are_not_canopens_are_ignored() {
+        let mut drive = operational();
+        let request = vec![0x40, 0x41, 0x60, 0, 0, 0, 0, 0];
+        let odd = [
+            Frame {
+                extended: true,
+                ..Frame::data(0x601, &request)
+            },
+            Frame {
+                remote: true,
+                data: vec![],
+                ..Frame::data(0x601, &request)
+            },
+            Frame {
+                id: 0x1601,
+                ..Frame::data(0x601, &request)
+            },
+            Frame::data(0x601, &[0; 9]),
+            Frame::data(0x602, &request),
+        ];
+        for frame in odd {
+            drive.receive(&frame);
+            assert!(drive.take_output().is_empty(), "{frame:?}");
+        }
+    }
+}
