@@ -22,8 +22,9 @@ use crate::error::GrblError;
 const MM_PER_INCH: f64 = 25.4;
 /// grbl's `MAX_LINE_NUMBER`.
 const MAX_LINE_NUMBER: f64 = 10_000_000.0;
-/// Significant digits grbl's `read_float` keeps (`MAX_INT_DIGITS`); later digits are dropped.
-const MAX_INT_DIGITS: u32 = 8;
+/// Significant digits grblHAL's `read_float` keeps (`MAX_INT_DIGITS` in its `nuts_bolts.h`;
+/// grbl 1.1 keeps 8 and counts leading zeros); later digits are dropped.
+const MAX_INT_DIGITS: u32 = 9;
 
 /// Rounds values to the controller's number type, as its parser does.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -230,8 +231,9 @@ fn normalize(text: &str) -> Vec<u8> {
     out
 }
 
-/// grbl's `read_float`: optional sign, digits with at most one point, at least one digit.
-/// Digits past the eighth significant one are dropped (the value keeps its magnitude).
+/// grblHAL's `read_float`: optional sign, digits with at most one point, at least one
+/// digit. Digits past the ninth significant one are dropped (the value keeps its
+/// magnitude); leading zeros are not significant.
 fn read_float(bytes: &[u8], at: &mut usize) -> Option<f64> {
     let mut i = *at;
     let negative = match bytes.get(i) {
@@ -246,10 +248,14 @@ fn read_float(bytes: &[u8], at: &mut usize) -> Option<f64> {
         _ => false,
     };
     let (mut int_val, mut exp, mut digits, mut point) = (0u64, 0i32, 0u32, false);
+    let mut any = false;
     while let Some(&byte) = bytes.get(i) {
         match byte {
             b'0'..=b'9' => {
-                digits += 1;
+                any = true;
+                if byte != b'0' || int_val != 0 {
+                    digits += 1;
+                }
                 if digits <= MAX_INT_DIGITS {
                     if point {
                         exp -= 1;
@@ -264,11 +270,11 @@ fn read_float(bytes: &[u8], at: &mut usize) -> Option<f64> {
         }
         i += 1;
     }
-    if digits == 0 {
+    if !any {
         return None;
     }
     *at = i;
-    // int_val has at most 8 digits, exactly representable; powi keeps the magnitude.
+    // int_val has at most 9 digits, exactly representable; powi keeps the magnitude.
     let value = int_val as f64 * 10f64.powi(exp);
     Some(if negative { -value } else { value })
 }
@@ -793,10 +799,12 @@ mod tests {
     fn numbers_as_grbl_reads_them() {
         let (state, _) = run(&["g0 x1.5 z-.5 c+2"]).unwrap();
         assert_eq!(state.position, [1.5, -0.5, 2.0]);
-        // Eight significant digits are kept, later ones dropped (magnitude kept).
-        let (state, _) = run(&["G0 X1.234567891 Z123456789"]).unwrap();
-        assert_eq!(state.position[0], 1.2345678);
-        assert_eq!(state.position[1], 123456780.0);
+        // Nine significant digits are kept, later ones dropped (magnitude kept); leading
+        // zeros are not significant (grblHAL's nuts_bolts.c).
+        let (state, _) = run(&["G0 X1.2345678912 Z1234567891 C0.000123456789"]).unwrap();
+        assert!((state.position[0] - 1.23456789).abs() < 1e-15);
+        assert_eq!(state.position[1], 1234567890.0);
+        assert!((state.position[2] - 0.000123456789).abs() < 1e-18);
         // Comments, block delete and `;` are not words.
         let (state, _) = run(&["/G0 (move) X3 ; Z9"]).unwrap();
         assert_eq!(state.position, [3.0, 0.0, 0.0]);

@@ -42,7 +42,8 @@ pub enum Dialect {
 
 impl Dialect {
     /// How many digits of a number the controller reads; grblHAL's `read_float` keeps
-    /// the first nine digits (leading zeros included) and silently drops the rest.
+    /// the first nine significant digits and silently drops the rest. Every digit written
+    /// counts here, leading zeros too, which errs on the safe side.
     pub fn max_number_digits(self) -> Option<usize> {
         match self {
             Dialect::GrblHal => Some(9),
