@@ -359,12 +359,14 @@ const RATE_SLACK: f64 = 1e-9;
 
 /// A program that asks more of the machine than its profile allows.
 ///
-/// `block` is an index into [`Program::blocks`] (0-based), not a line of a G-code file.
+/// `block` is an index into [`Program::blocks`] (0-based), not a line of a G-code file;
+/// the message leaves it out, so that the caller can say where in its own terms (a file
+/// line, see [`LimitError::block`]).
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum LimitError {
     /// A position outside the axis' travel.
     #[error(
-        "block {block} (block index, not a file line): {axis} position {value} {unit} is \
+        "{axis} position {value} {unit} is \
          {side} the machine's {bound} {limit} {unit} (axes.{key}.{bound})",
         unit = .axis.unit(),
         key = .axis.letter().to_ascii_lowercase(),
@@ -384,7 +386,7 @@ pub enum LimitError {
     },
     /// An axis moving faster than its max rate.
     #[error(
-        "block {block} (block index, not a file line): {axis} speed {speed:.1} {unit}/min \
+        "{axis} speed {speed:.1} {unit}/min \
          exceeds the machine's max_rate {limit} {unit}/min (axes.{key})",
         unit = .axis.unit(),
         key = .axis.letter().to_ascii_lowercase()
@@ -402,7 +404,7 @@ pub enum LimitError {
     /// A feed or linked move of an axis the program has not positioned: where it starts,
     /// and so how fast it moves, is unknown.
     #[error(
-        "block {block} (block index, not a file line): moves {axis} at feed before any \
+        "moves {axis} at feed before any \
          block positioned {axis}, so its speed cannot be checked (position it with a rapid first)"
     )]
     Unpositioned {
@@ -413,7 +415,7 @@ pub enum LimitError {
     },
     /// A ring speed outside the spindle's range.
     #[error(
-        "block {block} (block index, not a file line): spindle speed {rpm} rpm is outside \
+        "spindle speed {rpm} rpm is outside \
          the machine's range {min}..={max} rpm (spindle)"
     )]
     SpindleSpeed {
@@ -427,13 +429,26 @@ pub enum LimitError {
         max: f64,
     },
     /// A value no machine can execute (not finite, zero or negative time or feed).
-    #[error("block {block} (block index, not a file line): {problem}")]
+    #[error("{problem}")]
     InvalidBlock {
         /// Block index.
         block: usize,
         /// What is wrong.
         problem: String,
     },
+}
+
+impl LimitError {
+    /// The block (index into [`Program::blocks`]) that asks too much.
+    pub fn block(&self) -> usize {
+        match self {
+            LimitError::Travel { block, .. }
+            | LimitError::Speed { block, .. }
+            | LimitError::Unpositioned { block, .. }
+            | LimitError::SpindleSpeed { block, .. }
+            | LimitError::InvalidBlock { block, .. } => *block,
+        }
+    }
 }
 
 /// Axis speeds of a G94 feed move, per minute, under the controller's rule for sharing
@@ -869,8 +884,7 @@ accel = 7200.0
         );
         assert_eq!(
             error.to_string(),
-            "block 1 (block index, not a file line): X speed 5000.0 mm/min exceeds the \
-             machine's max_rate 3000 mm/min (axes.x)"
+            "X speed 5000.0 mm/min exceeds the machine's max_rate 3000 mm/min (axes.x)"
         );
         // C: 180° in 0.002 min is 90 000 deg/min, over 72 000.
         let c_fast = program(vec![
@@ -976,10 +990,10 @@ accel = 7200.0
         );
         let prog = program(vec![rapid(0.0, -301.0, 0.0)]);
         let error = check_limits(&prog, &p).unwrap_err();
+        assert_eq!(error.block(), 0);
         assert_eq!(
             error.to_string(),
-            "block 0 (block index, not a file line): Z position -301 mm is below the \
-             machine's min -300 mm (axes.z.min)"
+            "Z position -301 mm is below the machine's min -300 mm (axes.z.min)"
         );
         // A C axis limited to ±400°: two turns renamed to 0 are still 720° unrebased.
         p.axes.c.min = Some(-400.0);

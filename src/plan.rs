@@ -272,7 +272,8 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         delta
     );
     let path = path::build(&nodes, &spec, &title);
-    machine::check_limits(&path.program, machine).map_err(|e| PlanError::Limits(e.to_string()))?;
+    machine::check_limits(&path.program, machine)
+        .map_err(|e| PlanError::Limits(format!("block {} of the planned path: {e}", e.block())))?;
     let settings = PostSettings {
         dialect: machine.dialect,
         linear_decimals: linear,

@@ -364,7 +364,16 @@ pub fn parse(text: &str) -> Result<Vec<ParsedLine>, ParseError> {
 
 /// Parses the text and builds the program; see [`to_program`].
 pub fn read_program(text: &str, x_diameter: bool) -> Result<Program, ParseError> {
-    to_program(&parse(text)?, x_diameter)
+    read_program_with_lines(text, x_diameter).map(|(program, _)| program)
+}
+
+/// [`read_program`], with the 1-based text line of every block, so that what is said about
+/// a block (a limit it breaks) can name the line.
+pub fn read_program_with_lines(
+    text: &str,
+    x_diameter: bool,
+) -> Result<(Program, Vec<usize>), ParseError> {
+    to_program_with_lines(&parse(text)?, x_diameter)
 }
 
 /// Parses one line (without its line end); `number` is its 1-based line number, used
@@ -575,6 +584,14 @@ struct State {
 /// absolute mm (X a radius) and degrees, in the controller's C frame (G92 C becomes
 /// [`Block::RebaseC`], G92.1 [`Block::ClearRebase`]); see the module docs.
 pub fn to_program(lines: &[ParsedLine], x_diameter: bool) -> Result<Program, ParseError> {
+    to_program_with_lines(lines, x_diameter).map(|(program, _)| program)
+}
+
+/// [`to_program`], with the line number of every block.
+fn to_program_with_lines(
+    lines: &[ParsedLine],
+    x_diameter: bool,
+) -> Result<(Program, Vec<usize>), ParseError> {
     let mut state = State {
         inch: false,
         incremental: false,
@@ -588,6 +605,7 @@ pub fn to_program(lines: &[ParsedLine], x_diameter: bool) -> Result<Program, Par
         c_offset: Some(0.0),
     };
     let mut program = Program::default();
+    let mut block_lines = Vec::new();
     for line in lines {
         let ended = run_line(line, &mut state, &mut program.blocks).map_err(|(column, kind)| {
             ParseError {
@@ -596,11 +614,12 @@ pub fn to_program(lines: &[ParsedLine], x_diameter: bool) -> Result<Program, Par
                 kind,
             }
         })?;
+        block_lines.resize(program.blocks.len(), line.number);
         if ended {
             break;
         }
     }
-    Ok(program)
+    Ok((program, block_lines))
 }
 
 /// Runs one line in RS274/NGC order of execution; `Ok(true)` at program end.

@@ -46,7 +46,7 @@ use tokio_serial::SerialPortBuilderExt;
 use tracing::Instrument;
 
 use crate::exec_log::{self, ExecLog, LogError};
-use crate::gcode::parse::{read_program, ParseError};
+use crate::gcode::parse::{read_program_with_lines, ParseError};
 use crate::machine::{check_limits, LimitError, MachineProfile};
 use crate::protocol::{
     self, Event, LineRef, MachineState, Progress, ResumePoint, Status, StopReason, Streamer,
@@ -301,8 +301,13 @@ pub enum PreflightError {
     #[error("the program cannot be read: {0}")]
     Parse(#[source] ParseError),
     /// The program asks more than the machine allows.
-    #[error("the program exceeds the machine's limits: {0}")]
-    Limits(#[source] LimitError),
+    #[error("line {line}: the program exceeds the machine's limits: {source}")]
+    Limits {
+        /// The program line (1-based) of the block that does.
+        line: usize,
+        /// What it asks.
+        source: LimitError,
+    },
 }
 
 /// Why a run failed. Stops the protocol defines (errors, alarms, resets) are not failures:
@@ -343,12 +348,15 @@ pub enum StreamError {
 }
 
 /// Checks a program against a machine's travel and speed limits, as it will be streamed:
-/// the lines parsed as one program ([`read_program`], X words read as the profile's
+/// the lines parsed as one program ([`read_program_with_lines`], X words read as the profile's
 /// `x_mode` says), then [`check_limits`].
 pub fn check_program(lines: &[String], machine: &MachineProfile) -> Result<(), PreflightError> {
-    let program =
-        read_program(&lines.join("\n"), machine.x_diameter()).map_err(PreflightError::Parse)?;
-    check_limits(&program, machine).map_err(PreflightError::Limits)
+    let (program, block_lines) = read_program_with_lines(&lines.join("\n"), machine.x_diameter())
+        .map_err(PreflightError::Parse)?;
+    check_limits(&program, machine).map_err(|source| PreflightError::Limits {
+        line: block_lines[source.block()],
+        source,
+    })
 }
 
 /// How busy a serial link was: `bytes` × 10 bits (8N1: a start bit, eight data bits, a
@@ -1452,10 +1460,15 @@ mod tests {
         };
         let run = run(lines, options, Fake::grblhal(1024), Script::default()).await;
         let error = run.result.unwrap_err();
+        // The third line goes to X1000, past the travel: the error names that line.
         assert!(
-            matches!(error, StreamError::Preflight(PreflightError::Limits(_))),
+            matches!(
+                error,
+                StreamError::Preflight(PreflightError::Limits { line: 3, .. })
+            ),
             "{error:?}"
         );
+        assert!(error.to_string().starts_with("line 3: "), "{error}");
         assert!(run.fake.realtime.is_empty());
         assert_eq!(run.fake.max_fill, 0);
         assert!(run.records.is_empty(), "nothing ran, nothing logged");
