@@ -135,6 +135,12 @@ pub enum DryRunError {
     /// The executed-path log.
     #[error("executed-path log: {0}")]
     Log(#[from] LogError),
+    /// The program cannot go through the Modbus register map.
+    #[error("Modbus: {0}")]
+    Modbus(String),
+    /// The Modbus transport.
+    #[error(transparent)]
+    ModbusStream(#[from] crate::transport::modbus::ModbusError),
 }
 
 /// What the simulator side collects while it serves.
@@ -291,5 +297,172 @@ pub async fn dry_run(
         points_measured: measured.points,
         points,
         alarms: sim.alarms,
+    })
+}
+
+/// Which Modbus link a Modbus dry run uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModbusKind {
+    /// Modbus TCP on a loopback port.
+    Tcp,
+    /// Modbus RTU over a pseudo-terminal.
+    Rtu,
+}
+
+/// Simulated seconds per wall second of a Modbus dry run unless told otherwise: the bridge
+/// polls and feeds the watchdog in the controller's time (see
+/// [`crate::transport::modbus`]), so the clock runs scaled, not as fast as it can.
+pub const MODBUS_TIME_SCALE: f64 = 100.0;
+
+/// The simulated controller's watchdog in a dry run, ms of its time: long enough that a
+/// host busy for a few milliseconds of wall time does not trip it at the dry run's time
+/// scale (the watchdog itself is tested apart).
+const DRY_RUN_WATCHDOG_MS: u16 = 60_000;
+
+/// Dry-runs `program` (planned for `job` on `machine`) through the Modbus register map:
+/// the simulator's register bank in front of the same simulated controller and Δ guard,
+/// served with tokio-modbus over TCP or RTU, and whirl's Modbus transport streaming to it.
+pub async fn dry_run_modbus(
+    job: &Job,
+    machine: &MachineProfile,
+    name: &str,
+    program: &crate::gcode::program::Program,
+    kind: ModbusKind,
+    options: DryRunOptions,
+    log: &mut ExecLog,
+) -> Result<DryRunReport, DryRunError> {
+    use crate::transport::modbus::{stream_modbus, ModbusLink, ModbusOptions};
+    use whirl_sim::modbus::serve::{serve_rtu, serve_tcp, ClockOptions};
+    use whirl_sim::modbus::{Bank, BankOptions};
+
+    crate::machine::check_limits(program, machine)
+        .map_err(|e| DryRunError::Modbus(format!("block {}: {e}", e.block())))?;
+    let segments =
+        crate::modbus::map::segments(program).map_err(|e| DryRunError::Modbus(e.to_string()))?;
+    let total = segments.len();
+    let guard = DeltaGuard::new(job, machine)?;
+    let points = guard.points();
+    let mut controller =
+        Controller::new(&simulator::machine(machine), ControllerOptions::default())?;
+    controller.set_guard(Box::new(guard));
+    let bank = Bank::new(
+        controller,
+        BankOptions {
+            watchdog_timeout_ms: DRY_RUN_WATCHDOG_MS,
+            ..BankOptions::default()
+        },
+    )?;
+    let bank = std::sync::Arc::new(std::sync::Mutex::new(bank));
+    let scale = options.time_scale.unwrap_or(MODBUS_TIME_SCALE);
+    let clock = ClockOptions {
+        time_scale: scale,
+        ..ClockOptions::default()
+    };
+    let started = Instant::now();
+    let mut sim = SimSide {
+        log: log.clone(),
+        started,
+        last_answer: 0.0,
+        motion: None,
+        alarms: Vec::new(),
+        log_error: None,
+    };
+    let stream_options = ModbusOptions {
+        clock_scale: scale,
+        program: name.to_owned(),
+        ..ModbusOptions::default()
+    };
+    let outcome = match kind {
+        ModbusKind::Tcp => {
+            let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+                .await
+                .map_err(DryRunError::Simulator)?;
+            let addr = listener.local_addr().map_err(DryRunError::Simulator)?;
+            let served = serve_tcp(listener, std::sync::Arc::clone(&bank), clock, |e| {
+                sim.on_event(e)
+            });
+            let link = ModbusLink::Tcp(addr);
+            let streamed = stream_modbus(&link, segments, stream_options, log);
+            tokio::pin!(served, streamed);
+            tokio::select! {
+                outcome = &mut streamed => outcome?,
+                ended = &mut served => {
+                    let why = ended.err().unwrap_or_else(|| std::io::Error::other("server ended"));
+                    return Err(DryRunError::Simulator(why));
+                }
+            }
+        }
+        ModbusKind::Rtu => {
+            let (master, slave) = tokio_serial::SerialStream::pair().map_err(DryRunError::Pty)?;
+            let device = slave.name().ok_or_else(|| {
+                DryRunError::Simulator(std::io::Error::other("the pty has no name"))
+            })?;
+            let link = ModbusLink::Rtu {
+                path: device,
+                baud: options.baud,
+            };
+            let served = serve_rtu(master, std::sync::Arc::clone(&bank), clock, |e| {
+                sim.on_event(e)
+            });
+            let streamed = stream_modbus(&link, segments, stream_options, log);
+            tokio::pin!(served, streamed);
+            let outcome = tokio::select! {
+                outcome = &mut streamed => outcome?,
+                ended = &mut served => {
+                    let why = ended.err().unwrap_or_else(|| std::io::Error::other("server ended"));
+                    return Err(DryRunError::Simulator(why));
+                }
+            };
+            drop(slave);
+            outcome
+        }
+    };
+    // What the clock had not handed over yet.
+    let bank = bank.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some(error) = sim.log_error {
+        return Err(error.into());
+    }
+    let measured = bank
+        .controller()
+        .guard()
+        .map(|g| g.measured())
+        .expect("the guard was set above");
+    let completed = outcome.completed;
+    let within_delta = completed
+        && sim.alarms.is_empty()
+        && outcome.alarm.is_none()
+        && measured.points == points
+        && measured.max_error_mm() <= measured.delta_mm;
+    let mut alarms = sim.alarms;
+    if let Some(a) = outcome.alarm {
+        if alarms.is_empty() {
+            alarms.push(AlarmReport {
+                code: a.code.code(),
+                message: a.to_string(),
+                detail: None,
+            });
+        }
+    }
+    Ok(DryRunReport {
+        job: name.to_owned(),
+        within_delta,
+        completed,
+        lines: total,
+        lines_acked: outcome.published,
+        stop: outcome
+            .alarm
+            .map(|a| a.to_string())
+            .or_else(|| outcome.failure.as_ref().map(ToString::to_string)),
+        machine_time_s: sim.motion.map_or(0.0, |(start, end)| end - start),
+        wall_time_s: started.elapsed().as_secs_f64(),
+        baud: options.baud,
+        link_utilization: 0.0,
+        max_error_mm: measured.max_error_mm(),
+        max_overcut_mm: measured.max_overcut_mm,
+        max_undercut_mm: measured.max_undercut_mm,
+        delta_mm: measured.delta_mm,
+        points_measured: measured.points,
+        points,
+        alarms,
     })
 }

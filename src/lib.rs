@@ -42,6 +42,7 @@
 //!   its profile error measured by the simulator's Δ guard.
 //! - [`exec_log`]: the executed-path log (JSON lines), its summary and plots.
 //! - [`can`]: sans-I/O CAN layers for CiA 402 drives: frames, slcan, CANopen, CiA 402.
+//! - [`modbus`]: the Modbus register map (`docs/modbus.md`), segments streamed through its ring.
 //! - [`transport`]: the async edges that move a protocol's bytes: a program streamed to a
 //!   controller over a serial line (tokio, tokio-serial), logged to the executed-path log.
 //!
@@ -83,6 +84,7 @@ pub mod job;
 pub mod linkage;
 pub mod machine;
 pub mod minimise;
+pub mod modbus;
 pub mod path;
 pub mod plan;
 pub mod profile;

@@ -99,6 +99,10 @@ enum Command {
         /// The simulated controller's receive buffer, bytes (grblHAL 1024, grbl on an AVR 128).
         #[arg(long, default_value_t = 1024)]
         rx: usize,
+        /// How the program goes to the simulated controller: G-code over a serial line, or
+        /// segments through the Modbus register map (docs/modbus.md) over TCP or RTU.
+        #[arg(long, value_enum, default_value_t = Transport::Serial)]
+        transport: Transport,
     },
     /// Read executed-path logs.
     Log {
@@ -123,6 +127,17 @@ enum Command {
         #[arg(long)]
         svg: Option<PathBuf>,
     },
+}
+
+/// A dry run's link to the simulator.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Transport {
+    /// G-code, grbl's character counting, over a pseudo-terminal.
+    Serial,
+    /// The Modbus register map over Modbus TCP on a loopback port.
+    ModbusTcp,
+    /// The Modbus register map over Modbus RTU on a pseudo-terminal.
+    ModbusRtu,
 }
 
 #[derive(Subcommand)]
@@ -345,6 +360,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             time_scale,
             baud,
             rx,
+            transport,
         } => {
             let machine = load_machine(machine.as_deref())?;
             let job = Job::load(&job_path)?;
@@ -377,14 +393,42 @@ fn run(cli: Cli) -> Result<ExitCode> {
             let runtime = tokio::runtime::Builder::new_current_thread()
                 .enable_all()
                 .build()?;
-            let r = runtime.block_on(whirl::dry_run::dry_run(
-                &job,
-                &machine,
-                &name,
-                lines,
-                options,
-                &mut exec_log,
-            ));
+            let r = runtime.block_on(async {
+                match transport {
+                    Transport::Serial => {
+                        whirl::dry_run::dry_run(
+                            &job,
+                            &machine,
+                            &name,
+                            lines,
+                            options,
+                            &mut exec_log,
+                        )
+                        .await
+                    }
+                    Transport::ModbusTcp | Transport::ModbusRtu => {
+                        let program =
+                            whirl::gcode::parse::read_program(&text, machine.x_diameter())
+                                .with_context(|| format!("cannot read {name}"))?;
+                        let kind = if transport == Transport::ModbusTcp {
+                            whirl::dry_run::ModbusKind::Tcp
+                        } else {
+                            whirl::dry_run::ModbusKind::Rtu
+                        };
+                        whirl::dry_run::dry_run_modbus(
+                            &job,
+                            &machine,
+                            &name,
+                            &program,
+                            kind,
+                            options,
+                            &mut exec_log,
+                        )
+                        .await
+                    }
+                }
+                .map_err(anyhow::Error::from)
+            });
             if let Some(bar) = bar {
                 bar.finish();
             }

@@ -26,6 +26,7 @@
 //! - [`guard`]: the Δ guard's seat: a watch on executed blocks that can stop the machine.
 //! - [`error`]: the numbered answers and the simulator's own errors.
 //! - [`canopen`]: CAN equipment: an slcan adapter and CiA 402 drives on CANopen.
+//! - [`modbus`]: the Modbus register map's controller side, slots executed as G-code lines.
 //!
 //! # Example
 //!
@@ -74,6 +75,7 @@ pub mod error;
 pub mod guard;
 pub mod interpreter;
 pub mod machine;
+pub mod modbus;
 pub mod motion;
 pub mod protocol;
 pub mod record;

@@ -14,6 +14,11 @@
 //! - [`canopen`]: COB-IDs, NMT, heartbeat, EMCY, the expedited SDO client, PDO mapping.
 //! - [`cia402`]: statusword states, controlword commands, the walk to Operation enabled,
 //!   modes of operation, object indices.
+//! - [`setpoints`]: the planned path sampled at the cycle period into per-cycle (X, Z, C)
+//!   targets in drive counts.
+//! - [`session`]: the master: boot-up, configuration by SDO, NMT start, the walk to
+//!   Operation enabled, the cyclic set-points, heartbeat and emergency supervision, the
+//!   stop.
 //!
 //! The simulator's drives (`whirl_sim::canopen`) are a separate implementation of the
 //! other side, so that the two can check each other end to end.
@@ -49,6 +54,8 @@
 pub mod canopen;
 pub mod cia402;
 pub mod frame;
+pub mod session;
+pub mod setpoints;
 pub mod slcan;
 
 pub use frame::{CanFrame, CanId, FrameError};

@@ -183,3 +183,46 @@ fn a_program_past_the_travel_is_refused_before_the_simulator_starts() {
     let sent = std::fs::read_to_string(&log).unwrap_or_default();
     assert!(!sent.contains("\"sent\""), "{sent}");
 }
+
+#[test]
+fn every_example_dry_runs_within_delta_over_modbus_tcp_and_rtu() {
+    // The two transports side by side: at 400 times real time the simulator mostly waits
+    // on the link, so they share the host's cores without slowing each other.
+    std::thread::scope(|scope| {
+        for transport in ["modbus-tcp", "modbus-rtu"] {
+            scope.spawn(move || {
+                for job in util::examples() {
+                    let dir = tempfile::tempdir().unwrap();
+                    let (code, r, log) = dry_run(
+                        &job,
+                        dir.path(),
+                        &[
+                            OsStr::new("--transport"),
+                            OsStr::new(transport),
+                            OsStr::new("--time-scale"),
+                            OsStr::new("400"),
+                        ],
+                    );
+                    let name = format!("{} over {transport}", job.display());
+                    assert_eq!(code, Some(0), "{name}: {r:#}");
+                    assert_eq!(r["within_delta"], true, "{name}");
+                    assert_eq!(r["completed"], true, "{name}");
+                    assert_eq!(
+                        r["lines_acked"], r["lines"],
+                        "{name}: every segment published"
+                    );
+                    assert_eq!(r["points_measured"], r["points"], "{name}");
+                    assert!(r["max_error_mm"].as_f64().unwrap() <= r["delta_mm"].as_f64().unwrap());
+                    assert_eq!(r["alarms"].as_array().map(Vec::len), Some(0), "{name}");
+                    let u = r["link_utilization"].as_f64().unwrap();
+                    assert!((0.0..=1.0).contains(&u), "{name}: {u}");
+                    // The simulator's own record: every segment's move executed once.
+                    let summary = exec_log::Summary::of(&log);
+                    assert!(summary.executed_twice.is_empty(), "{name}");
+                    assert_eq!(summary.sent as u64, r["lines"].as_u64().unwrap(), "{name}");
+                    assert_eq!(summary.completed, Some(true), "{name}");
+                }
+            });
+        }
+    });
+}

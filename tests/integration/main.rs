@@ -1,9 +1,11 @@
 //! Integration tests: one binary, shared helpers in `util`.
 
+mod can_session;
 mod cli;
 mod dry_run;
 mod link;
 mod linkage;
+mod modbus_map;
 mod python_client;
 mod sim;
 mod stream;

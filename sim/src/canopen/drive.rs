@@ -56,6 +56,13 @@
 //!   = FFFFFFFFh switches the check off, as CiA 402 says. The fault reset sends EMCY 0x0000.
 //!   The drive does not move its target to its position on enable: a master that enables
 //!   with a stale target sees the jump, or the fault.
+//! - Positions count modulo 2³², as a drive's do with its position range limit (607Bh) at
+//!   INTEGER32's full range: the way to a target and the following error are the wrapping
+//!   difference, so a rotary axis can turn past ±2³¹ counts (a whirling job's C does).
+//! - Software position limits ([`DriveConfig::software_limits`], 607Dh's values; the
+//!   object itself is not in the dictionary): a target outside them, when a cycle would
+//!   move towards it, faults the drive with EMCY 0x8612 before it moves.
+//! - [`Drive::external_fault`]: a fault from outside CANopen (a machine's safety chain).
 
 use std::time::Duration;
 
@@ -83,6 +90,9 @@ pub const DEVICE_TYPE: u32 = 0x0002_0192;
 pub const EMCY_FOLLOWING_ERROR: u16 = 0x8611;
 /// EMCY code of an RPDO shorter than its mapping (CiA 301).
 pub const EMCY_PDO_LENGTH: u16 = 0x8210;
+/// EMCY code of a target outside the software position limits: CiA 402's "reference
+/// limit" of the positioning controller.
+pub const EMCY_POSITION_LIMIT: u16 = 0x8612;
 
 /// How a drive is built.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -97,10 +107,14 @@ pub struct DriveConfig {
     pub heartbeat_ms: u16,
     /// Power-on value of 6065h, counts.
     pub following_error_window: u32,
+    /// Software position limits (min, max), counts; `None`: unlimited, as a rotary axis
+    /// is.
+    pub software_limits: Option<(i32, i32)>,
 }
 
 impl DriveConfig {
-    /// Node `node` with 1000 counts a cycle, at 0, no heartbeat, a 10000-count window.
+    /// Node `node` with 1000 counts a cycle, at 0, no heartbeat, a 10000-count window, no
+    /// software limits.
     pub fn new(node: u8) -> DriveConfig {
         DriveConfig {
             node,
@@ -108,6 +122,7 @@ impl DriveConfig {
             position: 0,
             heartbeat_ms: 0,
             following_error_window: 10_000,
+            software_limits: None,
         }
     }
 }
@@ -331,6 +346,16 @@ impl Drive {
         self.now
     }
 
+    /// A fault from outside the CANopen interface (a machine's safety chain, a
+    /// supervisor): the drive goes through Fault reaction active to Fault and sends EMCY
+    /// `code`, as for a fault of its own. Nothing happens in Fault (the first fault
+    /// stands).
+    pub fn external_fault(&mut self, code: u16) {
+        if self.power != PowerState::Fault {
+            self.fault(code);
+        }
+    }
+
     /// Frames to put on the bus since the last call.
     pub fn take_output(&mut self) -> Vec<Frame> {
         std::mem::take(&mut self.output)
@@ -530,17 +555,21 @@ impl Drive {
                 }
             }
         }
-        if self.csp_running() {
+        let outside = |(min, max): (i32, i32)| !(min..=max).contains(&self.target);
+        let moving = self.target != self.actual;
+        if self.csp_running() && moving && self.config.software_limits.is_some_and(outside) {
+            self.fault(EMCY_POSITION_LIMIT);
+        } else if self.csp_running() {
+            // Modulo 2^32: the shorter way round, as the drive's position counter wraps.
             let step = i64::from(self.config.max_step);
-            let gap = i64::from(self.target) - i64::from(self.actual);
-            // Between actual and target, both i32: the sum stays in range.
-            self.actual = (i64::from(self.actual) + gap.clamp(-step, step)) as i32;
+            let gap = i64::from(self.target.wrapping_sub(self.actual));
+            self.actual = self.actual.wrapping_add(gap.clamp(-step, step) as i32);
             self.events.push(DriveEvent::Cycle {
                 time: self.now,
                 target: self.target,
                 actual: self.actual,
             });
-            let error = (i64::from(self.target) - i64::from(self.actual)).unsigned_abs();
+            let error = i64::from(self.target.wrapping_sub(self.actual)).unsigned_abs();
             if self.window != u32::MAX && error > u64::from(self.window) {
                 self.following_error = true;
                 self.fault(EMCY_FOLLOWING_ERROR);
@@ -1336,6 +1365,94 @@ mod tests {
         write(&mut drive, 0x6040, 0, 0x00, 2).unwrap();
         write(&mut drive, 0x6040, 0, 0x80, 2).unwrap();
         assert_eq!(drive.power_state(), PowerState::SwitchOnDisabled);
+    }
+
+    #[test]
+    fn positions_wrap_modulo_2_pow_32() {
+        let mut drive = booted(DriveConfig {
+            position: i32::MAX - 500,
+            ..DriveConfig::new(1)
+        });
+        drive.receive(&Frame::data(0x000, &[0x01, 0x01]));
+        write(&mut drive, 0x6060, 0, 8, 1).unwrap();
+        for word in [0x06, 0x07, 0x0F] {
+            rpdo1(&mut drive, word, i32::MAX - 500);
+            sync(&mut drive);
+        }
+        // 1000 counts on from i32::MAX − 500: past the top, to i32::MIN + 499, in one
+        // cycle, within the window.
+        rpdo1(&mut drive, 0x0F, i32::MIN + 499);
+        let frames = sync(&mut drive);
+        assert_eq!(drive.position(), i32::MIN + 499);
+        assert_eq!(drive.power_state(), PowerState::OperationEnabled);
+        let mut tpdo = vec![0x37, 0x12];
+        tpdo.extend_from_slice(&(i32::MIN + 499).to_le_bytes());
+        assert_eq!(frames, [Frame::data(0x181, &tpdo)]);
+        // Back the other way, and a following error measured across the wrap too.
+        rpdo1(&mut drive, 0x0F, i32::MAX - 20_000);
+        sync(&mut drive);
+        assert_eq!(drive.position(), i32::MAX - 500);
+        assert_eq!(drive.power_state(), PowerState::Fault);
+        assert!(drive.take_events().contains(&DriveEvent::Fault {
+            time: Duration::ZERO,
+            code: EMCY_FOLLOWING_ERROR
+        }));
+    }
+
+    #[test]
+    fn a_target_beyond_the_software_limits_faults_before_moving() {
+        let mut drive = booted(DriveConfig {
+            software_limits: Some((-100, 5000)),
+            ..DriveConfig::new(2)
+        });
+        drive.receive(&Frame::data(0x000, &[0x01, 0x02]));
+        drive.receive(&Frame::data(0x602, &[0x2F, 0x60, 0x60, 0, 8, 0, 0, 0]));
+        let rpdo = |drive: &mut Drive, word: u16, target: i32| {
+            let mut data = word.to_le_bytes().to_vec();
+            data.extend_from_slice(&target.to_le_bytes());
+            drive.receive(&Frame::data(0x202, &data));
+            drive.receive(&Frame::data(0x080, &[]));
+            drive.take_output()
+        };
+        for word in [0x06, 0x07, 0x0F] {
+            rpdo(&mut drive, word, 0);
+        }
+        // Up to the limit is fine; one count past it faults, with no motion, EMCY 8612h.
+        rpdo(&mut drive, 0x0F, 5000);
+        assert_eq!(drive.position(), 1000);
+        let frames = rpdo(&mut drive, 0x0F, 5001);
+        assert_eq!(drive.position(), 1000);
+        assert_eq!(drive.power_state(), PowerState::Fault);
+        assert_eq!(
+            frames[0],
+            Frame::data(0x082, &[0x12, 0x86, 0x01, 0, 0, 0, 0, 0])
+        );
+        // Reset, and a target below the limit does the same.
+        rpdo(&mut drive, 0x80, 1000);
+        for word in [0x06, 0x07, 0x0F] {
+            rpdo(&mut drive, word, 1000);
+        }
+        assert_eq!(drive.power_state(), PowerState::OperationEnabled);
+        rpdo(&mut drive, 0x0F, -101);
+        assert_eq!(
+            (drive.power_state(), drive.position()),
+            (PowerState::Fault, 1000)
+        );
+    }
+
+    #[test]
+    fn an_external_fault_sends_its_code_once() {
+        let mut drive = enabled();
+        drive.external_fault(0xFF64);
+        assert_eq!(drive.power_state(), PowerState::Fault);
+        assert_eq!(
+            drive.take_output(),
+            [Frame::data(0x081, &[0x64, 0xFF, 0x01, 0, 0, 0, 0, 0])]
+        );
+        // A second one while in Fault: the first stands, nothing is sent.
+        drive.external_fault(0x9000);
+        assert!(drive.take_output().is_empty());
+        assert_eq!(read(&mut drive, 0x1001, 0), Ok((0x4F, 0x01)));
     }
 
     #[test]

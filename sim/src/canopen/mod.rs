@@ -12,14 +12,19 @@
 //! - [`drive`]: a CiA 402 drive. NMT with boot-up and heartbeat, an expedited SDO server
 //!   over a small object dictionary, the power state machine, cyclic synchronous position
 //!   mode driven by RPDO1 on SYNC, TPDO1 back, following-error faults with EMCY.
+//! - [`bus`]: the whirling lathe's three drives (X, Z, C) behind an adapter as one unit,
+//!   each SYNC's cycle recorded as an executed move, with the Δ guard's seat, travel
+//!   limits and a cable to pull.
 //!
-//! Wiring them is a loop the caller writes (the tests below do): host bytes into the
-//! adapter, the adapter's transmitted frames to every drive, every drive's frames to the
-//! adapter and to the other drives.
+//! Wiring an adapter and drives is otherwise a loop the caller writes (the tests below
+//! do): host bytes into the adapter, the adapter's transmitted frames to every drive,
+//! every drive's frames to the adapter and to the other drives.
 
+pub mod bus;
 pub mod drive;
 pub mod slcan;
 
+pub use bus::{Bus, BusConfig, BusError, BusEvent};
 pub use drive::{Drive, DriveConfig, DriveEvent, NmtState, PowerState};
 pub use slcan::SlcanAdapter;
 

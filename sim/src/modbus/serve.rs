@@ -1,0 +1,182 @@
+//! The Modbus front-end served: a [`Bank`] behind tokio-modbus's TCP or RTU server, its
+//! clock advanced in simulated time.
+//!
+//! Only bytes and time move here. tokio-modbus frames the requests and answers; each request
+//! goes to the bank under a lock, and a clock task advances the bank by the wall time
+//! elapsed times the time scale. Events (lines answered, blocks executed, alarms) are handed
+//! to the caller's `on_event` from the clock task, so the caller sees them in order.
+
+use super::{Bank, Exception, Request, Response};
+use crate::Event;
+use std::future::{ready, Ready};
+use std::io;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+use tokio_modbus::server::Service;
+use tokio_modbus::{ExceptionCode, SlaveRequest};
+
+/// The unit id the map serves (`docs/modbus.md`); requests to others get no answer, as on
+/// a shared RTU line.
+pub const UNIT_ID: u8 = 1;
+
+/// A bank shared by the server's connection and the clock.
+pub type SharedBank = Arc<Mutex<Bank>>;
+
+/// How the served bank's clock runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClockOptions {
+    /// Simulated seconds per wall second.
+    pub time_scale: f64,
+    /// Wall time between clock steps.
+    pub tick: Duration,
+}
+
+impl Default for ClockOptions {
+    fn default() -> ClockOptions {
+        ClockOptions {
+            time_scale: 1.0,
+            tick: Duration::from_millis(2),
+        }
+    }
+}
+
+/// tokio-modbus's view of the bank.
+#[derive(Clone)]
+struct Front {
+    bank: SharedBank,
+}
+
+impl Service for Front {
+    type Request = SlaveRequest<'static>;
+    type Response = Option<tokio_modbus::Response>;
+    type Exception = ExceptionCode;
+    type Future = Ready<Result<Self::Response, Self::Exception>>;
+
+    fn call(&self, req: Self::Request) -> Self::Future {
+        if req.slave != UNIT_ID {
+            return ready(Ok(None));
+        }
+        let request = match req.request {
+            tokio_modbus::Request::ReadHoldingRegisters(address, count) => {
+                Request::ReadHolding { address, count }
+            }
+            tokio_modbus::Request::WriteSingleRegister(address, value) => {
+                Request::WriteSingle { address, value }
+            }
+            tokio_modbus::Request::WriteMultipleRegisters(address, values) => {
+                Request::WriteMultiple {
+                    address,
+                    values: values.into_owned(),
+                }
+            }
+            other => Request::Other {
+                function: function_code(&other),
+            },
+        };
+        let answer = lock(&self.bank).request(&request);
+        ready(answer.map(|r| Some(to_wire(r))).map_err(to_exception))
+    }
+}
+
+/// The bank, even if a panicking holder poisoned the lock: its state is whole between
+/// calls, and a simulator that stops answering would hide the first failure behind others.
+fn lock(bank: &SharedBank) -> std::sync::MutexGuard<'_, Bank> {
+    bank.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+fn function_code(request: &tokio_modbus::Request<'_>) -> u8 {
+    request.function_code().value()
+}
+
+fn to_wire(response: Response) -> tokio_modbus::Response {
+    match response {
+        Response::ReadHolding(values) => tokio_modbus::Response::ReadHoldingRegisters(values),
+        Response::WriteSingle { address, value } => {
+            tokio_modbus::Response::WriteSingleRegister(address, value)
+        }
+        Response::WriteMultiple { address, count } => {
+            tokio_modbus::Response::WriteMultipleRegisters(address, count)
+        }
+    }
+}
+
+fn to_exception(exception: Exception) -> ExceptionCode {
+    match exception {
+        Exception::IllegalFunction => ExceptionCode::IllegalFunction,
+        Exception::IllegalDataAddress => ExceptionCode::IllegalDataAddress,
+        Exception::IllegalDataValue => ExceptionCode::IllegalDataValue,
+        Exception::ServerDeviceFailure => ExceptionCode::ServerDeviceFailure,
+        Exception::ServerDeviceBusy => ExceptionCode::ServerDeviceBusy,
+    }
+}
+
+/// Advances `bank` in simulated time for ever, handing its events to `on_event`.
+async fn run_clock(
+    bank: SharedBank,
+    clock: ClockOptions,
+    mut on_event: impl FnMut(&Event),
+) -> io::Result<()> {
+    let mut last = tokio::time::Instant::now();
+    loop {
+        tokio::time::sleep(clock.tick).await;
+        let now = tokio::time::Instant::now();
+        let dt = (now - last).as_secs_f64() * clock.time_scale;
+        last = now;
+        let events = {
+            let mut bank = lock(&bank);
+            bank.advance(dt)
+                .map_err(|e| io::Error::other(e.to_string()))?;
+            bank.take_events()
+        };
+        for e in &events {
+            on_event(e);
+        }
+    }
+}
+
+/// Serves `bank` on Modbus TCP connections accepted from `listener` until the clock fails
+/// (a bad time step) or accepting does; every event goes to `on_event`.
+pub async fn serve_tcp(
+    listener: tokio::net::TcpListener,
+    bank: SharedBank,
+    clock: ClockOptions,
+    on_event: impl FnMut(&Event),
+) -> io::Result<()> {
+    let server = tokio_modbus::server::tcp::Server::new(listener);
+    let front = Front {
+        bank: Arc::clone(&bank),
+    };
+    let on_connected = |stream, _addr| {
+        let front = front.clone();
+        async move { Ok(Some((front, stream))) }
+    };
+    let on_error = |error: io::Error| tracing_free_report(&error);
+    tokio::select! {
+        served = server.serve(&on_connected, on_error) => served,
+        clocked = run_clock(bank, clock, on_event) => clocked,
+    }
+}
+
+/// Serves `bank` as a Modbus RTU server on `serial` (a pseudo-terminal or a serial port)
+/// until the line fails or the clock does.
+pub async fn serve_rtu(
+    serial: tokio_serial::SerialStream,
+    bank: SharedBank,
+    clock: ClockOptions,
+    on_event: impl FnMut(&Event),
+) -> io::Result<()> {
+    let server = tokio_modbus::server::rtu::Server::new(serial);
+    let front = Front {
+        bank: Arc::clone(&bank),
+    };
+    tokio::select! {
+        served = server.serve_forever(front) => served,
+        clocked = run_clock(bank, clock, on_event) => clocked,
+    }
+}
+
+/// A connection that failed mid-request ends that connection only; the server goes on
+/// accepting. The simulator has no logger, so the failure goes to stderr.
+fn tracing_free_report(error: &io::Error) {
+    eprintln!("whirl-sim: Modbus connection ended: {error}");
+}

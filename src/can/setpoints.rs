@@ -1,0 +1,946 @@
+//! The planned path as cyclic synchronous position set-points: a [`Program`] sampled at a
+//! fixed cycle period into one (X, Z, C) target a cycle, in drive counts.
+//!
+//! In CSP mode (CiA 402, mode 8) the drives interpolate nothing: each SYNC they take the
+//! target position the master sent in the cycle before and close their loops on it. So
+//! the master is the interpolator, and the three drives stay coordinated only if all three
+//! targets of a cycle are the same instant of the same straight move. [`sample`] computes
+//! every cycle's targets before the first SYNC, so the cyclic phase only reads an array
+//! and never waits for a planner.
+//!
+//! # Timing
+//!
+//! Each motion block is a straight move in X, Z and C (the program model's moves are
+//! straight in joint space, as G-code's are), run at constant speed:
+//!
+//! - [`Block::Linked`]: its inverse-time duration, `minutes`.
+//! - [`Block::Feed`]: its length over the feed, F along the X/Z path when X or Z moves,
+//!   in deg/min when C moves alone. A feed of C together with X or Z is refused: G-code
+//!   dialects share F between linear and rotary axes differently
+//!   ([`crate::machine::check_limits`]), and the planner never writes one.
+//! - [`Block::Rapid`]: as fast as the slowest axis allows, as a controller's rapid is.
+//!
+//! Any of them is lengthened, if need be, so that no axis exceeds its max rate (grbl's
+//! planner does the same, `limit_value_by_axis_maximum`): the path stays the same, only
+//! slower ([`Move::slowed`]). Acceleration is not limited: the drives see the planned
+//! velocity steps at every junction.
+//!
+//! The moves follow each other without gaps, and the set-point of cycle *k* (1-based) is
+//! the path's position at time *k*·T. The last cycle is the first at or past the path's
+//! end and holds its final position, so the set-points span the program's duration
+//! rounded up to whole cycles.
+//!
+//! # Counts and their width
+//!
+//! A position is `round(value × counts per unit)`; moves run between these rounded ends,
+//! and a set-point is its move's start plus the rounded fraction of the move's difference,
+//! so every set-point lies within half a count (per axis) of its straight segment, and a
+//! move's last set-point is exactly its end.
+//!
+//! Counts are `i64`. A whirling job turns C for hours: 700 000° at 10 000 counts a degree
+//! (a 22-bit encoder on a 1:1 spindle has 11 650) is 7·10⁹ counts, beyond INTEGER32's
+//! 2.1·10⁹. f64 holds integers exactly up to 2⁵³, so counts up to ±2⁵³ (over 10⁹ turns at
+//! that resolution) are computed exactly and refused beyond.
+//!
+//! Target position 607Ah is INTEGER32 on the bus, so [`to_wire`] sends a position's low
+//! 32 bits: a CiA 402 drive with its position range limit (607Bh) at INTEGER32's full
+//! range counts modulo 2³², and so follows a C that wraps, as long as one cycle's step
+//! is below 2³¹ counts. [`unwrap_near`] reads a drive's 32-bit position back as the i64
+//! nearest a known one. X and Z are linear axes: their counts must fit INTEGER32 and are
+//! refused otherwise.
+//!
+//! # Spindle blocks
+//!
+//! The whirling ring's spindle is not one of the three drives. With
+//! [`SampleConfig::spin_up`] given, M3 and M5 become [`Mark`]s at the cycle where they
+//! fall, for the caller who runs the spindle, and the motion holds still for the spin-up
+//! time after M3; without it they are refused, naming the block, rather than a cut being
+//! run with the ring standing still.
+
+use std::time::Duration;
+
+use thiserror::Error;
+
+use crate::gcode::program::{Axis, Block, Pose, Program};
+use crate::machine::MachineProfile;
+
+/// The largest count magnitude computed exactly: 2⁵³, where f64 stops holding every
+/// integer.
+pub const MAX_COUNTS: i64 = 1 << 53;
+
+/// How to sample: the cycle, the drives' scales and the axes' speed limits. Arrays are in
+/// X, Z, C order ([`Axis::ALL`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SampleConfig {
+    /// The cycle period (the SYNC period), non-zero, in whole microseconds as CiA 301's
+    /// communication cycle period 1006h holds it.
+    pub period: Duration,
+    /// Drive counts per mm (X, Z) and per degree (C); positive, not necessarily whole.
+    pub counts_per_unit: [f64; 3],
+    /// Highest speed of each axis: mm/min (X, Z), deg/min (C), as machine profiles give it.
+    pub max_rate: [f64; 3],
+    /// How long the motion holds after M3 for the ring to reach its speed; `None` refuses
+    /// spindle blocks (see the module docs).
+    pub spin_up: Option<Duration>,
+}
+
+impl SampleConfig {
+    /// A configuration with `profile`'s max rates.
+    pub fn for_machine(
+        profile: &MachineProfile,
+        period: Duration,
+        counts_per_unit: [f64; 3],
+        spin_up: Option<Duration>,
+    ) -> SampleConfig {
+        SampleConfig {
+            period,
+            counts_per_unit,
+            max_rate: Axis::ALL.map(|axis| profile.max_rate(axis)),
+            spin_up,
+        }
+    }
+
+    fn check(&self) -> Result<(), SampleError> {
+        let config = |name, value: String, reason| SampleError::Config {
+            name,
+            value,
+            reason,
+        };
+        if self.period.is_zero() || self.period.subsec_nanos() % 1000 != 0 {
+            return Err(config(
+                "period",
+                format!("{:?}", self.period),
+                "must be a non-zero whole number of microseconds",
+            ));
+        }
+        for (name, values) in [
+            ("counts_per_unit", self.counts_per_unit),
+            ("max_rate", self.max_rate),
+        ] {
+            if let Some(bad) = values.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
+                return Err(config(
+                    name,
+                    bad.to_string(),
+                    "must be finite and above zero",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Why a program cannot be sampled. Blocks are named by their index in
+/// [`Program::blocks`].
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SampleError {
+    /// A configuration value out of range.
+    #[error("set-point sampling: {name} {value} {reason}")]
+    Config {
+        /// The field.
+        name: &'static str,
+        /// Its value.
+        value: String,
+        /// What it must be.
+        reason: &'static str,
+    },
+    /// The start position is not fully known or not finite.
+    #[error("start {axis}: {problem}")]
+    Start {
+        /// The axis.
+        axis: Axis,
+        /// What is wrong.
+        problem: String,
+    },
+    /// A spindle block with no spin-up time given: the ring is not on this bus.
+    #[error(
+        "block {block} (block index, not a file line) switches the ring spindle, which is not \
+         one of the CAN drives; give a spin-up time so that the caller runs it, or take it out"
+    )]
+    Spindle {
+        /// Block index.
+        block: usize,
+    },
+    /// A feed move of C together with X or Z.
+    #[error(
+        "block {block} (block index, not a file line) feeds C together with X or Z: G-code \
+         dialects share F between them differently, so its speed is ambiguous"
+    )]
+    MixedFeed {
+        /// Block index.
+        block: usize,
+    },
+    /// A value no move can have (not finite, zero or negative time or feed).
+    #[error("block {block} (block index, not a file line): {problem}")]
+    InvalidBlock {
+        /// Block index.
+        block: usize,
+        /// What is wrong.
+        problem: String,
+    },
+    /// A position beyond what the counts can hold.
+    #[error("{}{axis} {value} is {counts:.0} counts, beyond {limit}", at(*.block))]
+    Range {
+        /// Block index; `None` for the start position.
+        block: Option<usize>,
+        /// The axis.
+        axis: Axis,
+        /// The position, mm or degrees.
+        value: f64,
+        /// Its counts.
+        counts: f64,
+        /// The limit it passes.
+        limit: &'static str,
+    },
+}
+
+fn at(block: Option<usize>) -> String {
+    block.map_or("start ".into(), |b| {
+        format!("block {b} (block index, not a file line): ")
+    })
+}
+
+/// One straight move as sampled: its ends in counts and its time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Move {
+    /// The block (for a spin-up hold, the M3).
+    pub block: usize,
+    /// Start, counts.
+    pub from: [i64; 3],
+    /// End, counts.
+    pub to: [i64; 3],
+    /// When it starts, seconds from the first cycle's start.
+    pub start: f64,
+    /// How long it takes, seconds (above zero).
+    pub duration: f64,
+    /// Lengthened beyond the programmed time so that no axis exceeds its max rate.
+    pub slowed: bool,
+}
+
+/// A spindle command at its place in the set-points.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Mark {
+    /// The block.
+    pub block: usize,
+    /// Due once this many set-points have been sent: the first set-point at or past the
+    /// block's time is the last of them, so the motion before the block has been
+    /// commanded to its end.
+    pub cycle: usize,
+    /// `Some(rpm)`: M3; `None`: M5.
+    pub spindle: Option<f64>,
+}
+
+/// A program's set-points; see the module docs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SetPoints {
+    /// The cycle period.
+    pub period: Duration,
+    /// Where the path starts, counts (the drives' positions before the first cycle).
+    pub start: [i64; 3],
+    /// `points[k]`: the targets for cycle k + 1, the path's position at (k + 1)·period.
+    pub points: Vec<[i64; 3]>,
+    /// The straight moves sampled, in order, with their timing.
+    pub moves: Vec<Move>,
+    /// Spindle commands, in order.
+    pub marks: Vec<Mark>,
+}
+
+impl SetPoints {
+    /// Where the path ends, counts.
+    pub fn end(&self) -> [i64; 3] {
+        self.points.last().copied().unwrap_or(self.start)
+    }
+
+    /// The path's duration, seconds (the cycles span it rounded up to whole cycles).
+    pub fn duration(&self) -> f64 {
+        self.moves.last().map_or(0.0, |m| m.start + m.duration)
+    }
+}
+
+/// A position's 32 bits for 607Ah: the low 32 bits of its counts (wrapping; see the
+/// module docs).
+pub fn to_wire(counts: i64) -> i32 {
+    counts as i32
+}
+
+/// The i64 position whose low 32 bits are `wire` and which is nearest `near`: a drive's
+/// 32-bit position read back in the path's counts, exact while the two are within 2³¹.
+pub fn unwrap_near(wire: i32, near: i64) -> i64 {
+    near + i64::from(wire.wrapping_sub(to_wire(near)))
+}
+
+/// Samples `program` from `start` (every axis known: the drives' actual position) at
+/// `config`'s cycle; see the module docs.
+pub fn sample(
+    program: &Program,
+    start: Pose,
+    config: &SampleConfig,
+) -> Result<SetPoints, SampleError> {
+    config.check()?;
+    let mut start_units = [0.0; 3];
+    for (slot, axis) in Axis::ALL.into_iter().enumerate() {
+        start_units[slot] = match start.get(axis) {
+            None => {
+                return Err(SampleError::Start {
+                    axis,
+                    problem: "not known: CSP set-points begin at the drives' actual positions, \
+                              so every axis's start must be given"
+                        .into(),
+                })
+            }
+            Some(v) if !v.is_finite() => {
+                return Err(SampleError::Start {
+                    axis,
+                    problem: format!("{v} is not finite"),
+                })
+            }
+            Some(v) => v,
+        };
+    }
+    let start_counts = counts(config, None, start_units)?;
+    let rate = config.max_rate.map(|r| r / 60.0);
+    let mut moves = Vec::new();
+    let mut marks = Vec::new();
+    let mut time = 0.0;
+    let mut position = start_counts;
+    for step in program.steps(start) {
+        let block = step.index;
+        let invalid = |problem: String| SampleError::InvalidBlock { block, problem };
+        let programmed = match *step.block {
+            Block::Comment(_) | Block::ClearRebase => continue,
+            Block::RebaseC { c } if !c.is_finite() => {
+                return Err(invalid(format!("G92 C value {c} is not finite")));
+            }
+            Block::RebaseC { .. } => continue,
+            Block::SpindleOn { rpm } => {
+                let spin_up = config.spin_up.ok_or(SampleError::Spindle { block })?;
+                if !(rpm.is_finite() && rpm > 0.0) {
+                    return Err(invalid(format!(
+                        "spindle speed {rpm} rpm is not above zero"
+                    )));
+                }
+                marks.push((block, time, Some(rpm)));
+                if !spin_up.is_zero() {
+                    let duration = spin_up.as_secs_f64();
+                    moves.push(Move {
+                        block,
+                        from: position,
+                        to: position,
+                        start: time,
+                        duration,
+                        slowed: false,
+                    });
+                    time += duration;
+                }
+                continue;
+            }
+            Block::SpindleOff => {
+                config.spin_up.ok_or(SampleError::Spindle { block })?;
+                marks.push((block, time, None));
+                continue;
+            }
+            Block::Rapid { .. } => Timing::Rapid,
+            Block::Feed { feed, .. } if !(feed.is_finite() && feed > 0.0) => {
+                return Err(invalid(format!("feed {feed} is not above zero")));
+            }
+            Block::Feed { feed, .. } => Timing::Feed(feed),
+            Block::Linked { minutes, .. } if !(minutes.is_finite() && minutes > 0.0) => {
+                return Err(invalid(format!(
+                    "move time {minutes} min is not above zero"
+                )));
+            }
+            Block::Linked { minutes, .. } => Timing::InverseTime(minutes),
+        };
+        // A known start keeps every axis known through `steps` (only an unknown C renamed
+        // by G92 and then cleared makes one unknown).
+        let units = |pose: Pose| Axis::ALL.map(|a| pose.get(a).expect("a known start"));
+        let (from, to) = (units(step.from), units(step.to));
+        if let Some(slot) = (0..3).find(|&i| !to[i].is_finite()) {
+            let axis = Axis::ALL[slot];
+            return Err(invalid(format!("{axis} target {} is not finite", to[slot])));
+        }
+        let delta: [f64; 3] = std::array::from_fn(|i| to[i] - from[i]);
+        let fastest = (0..3).map(|i| delta[i].abs() / rate[i]).fold(0.0, f64::max);
+        let wanted = match programmed {
+            Timing::Rapid => None,
+            Timing::InverseTime(minutes) => Some(minutes * 60.0),
+            Timing::Feed(feed) => {
+                let [dx, dz, dc] = delta;
+                let linear = dx.hypot(dz);
+                if dc != 0.0 && linear != 0.0 {
+                    return Err(SampleError::MixedFeed { block });
+                }
+                Some(linear.max(dc.abs()) / feed * 60.0)
+            }
+        };
+        let duration = wanted.map_or(fastest, |w| w.max(fastest));
+        let slowed = wanted.is_some_and(|w| fastest > w * (1.0 + 1e-9));
+        let end = counts(config, Some(block), to)?;
+        if duration > 0.0 {
+            moves.push(Move {
+                block,
+                from: position,
+                to: end,
+                start: time,
+                duration,
+                slowed,
+            });
+            time += duration;
+        }
+        position = end;
+    }
+    let period = config.period.as_secs_f64();
+    // Whole cycles up to the end; a path end a hair past a cycle boundary is rounding.
+    let cycles = (time / period - 1e-9).ceil().max(0.0) as usize;
+    let mut points = Vec::with_capacity(cycles);
+    let mut at = 0;
+    for k in 1..=cycles {
+        let t = k as f64 * period;
+        while at < moves.len() && t >= moves[at].start + moves[at].duration {
+            at += 1;
+        }
+        points.push(match moves.get(at) {
+            Some(m) => {
+                let f = (t - m.start) / m.duration;
+                std::array::from_fn(|i| {
+                    m.from[i] + ((m.to[i] - m.from[i]) as f64 * f).round() as i64
+                })
+            }
+            None => position,
+        });
+    }
+    let marks = marks
+        .into_iter()
+        .map(|(block, time, spindle)| Mark {
+            block,
+            cycle: ((time / period - 1e-9).ceil().max(0.0) as usize).min(cycles),
+            spindle,
+        })
+        .collect();
+    Ok(SetPoints {
+        period: config.period,
+        start: start_counts,
+        points,
+        moves,
+        marks,
+    })
+}
+
+/// How a motion block's time is given.
+#[derive(Debug, Clone, Copy)]
+enum Timing {
+    /// As fast as the axes allow.
+    Rapid,
+    /// Units per minute (G94).
+    Feed(f64),
+    /// Minutes (G93).
+    InverseTime(f64),
+}
+
+/// A position's counts, range-checked.
+fn counts(
+    config: &SampleConfig,
+    block: Option<usize>,
+    units: [f64; 3],
+) -> Result<[i64; 3], SampleError> {
+    let mut out = [0; 3];
+    for (slot, axis) in Axis::ALL.into_iter().enumerate() {
+        let counts = (units[slot] * config.counts_per_unit[slot]).round();
+        let limit = match axis {
+            Axis::X | Axis::Z if counts.abs() > f64::from(i32::MAX) => {
+                Some("INTEGER32, which a linear axis's target must fit")
+            }
+            _ if counts.abs() > MAX_COUNTS as f64 => Some("2^53, the exactly computed range"),
+            _ => None,
+        };
+        if let Some(limit) = limit {
+            return Err(SampleError::Range {
+                block,
+                axis,
+                value: units[slot],
+                counts,
+                limit,
+            });
+        }
+        out[slot] = counts as i64;
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gcode::program::Step;
+
+    const MS: Duration = Duration::from_millis(1);
+
+    fn config() -> SampleConfig {
+        SampleConfig {
+            period: 4 * MS,
+            // 0.1 µm, and a 2^20-count encoder on C: not a whole number a degree.
+            counts_per_unit: [10_000.0, 10_000.0, 1_048_576.0 / 360.0],
+            max_rate: [3000.0, 3000.0, 72_000.0],
+            spin_up: Some(Duration::from_millis(500)),
+        }
+    }
+
+    fn rapid(x: f64, z: f64, c: f64) -> Block {
+        Block::Rapid {
+            x: Some(x),
+            z: Some(z),
+            c: Some(c),
+        }
+    }
+
+    fn linked(x: f64, z: f64, c: f64, minutes: f64) -> Block {
+        Block::Linked { x, z, c, minutes }
+    }
+
+    fn program(blocks: Vec<Block>) -> Program {
+        Program { blocks }
+    }
+
+    /// The test's own reading of a block's duration: linked moves their minutes, X/Z
+    /// feeds length over F, C feeds degrees over F, rapids their slowest axis, M3 the
+    /// spin-up, each at least its slowest axis at max rate.
+    fn seconds(step: &Step<'_>, config: &SampleConfig) -> f64 {
+        let d = Axis::ALL.map(|a| step.to.get(a).unwrap() - step.from.get(a).unwrap());
+        let floor = (0..3)
+            .map(|i| d[i].abs() * 60.0 / config.max_rate[i])
+            .fold(0.0, f64::max);
+        match *step.block {
+            Block::Linked { minutes, .. } => (minutes * 60.0).max(floor),
+            Block::Feed { feed, .. } => ((d[0].hypot(d[1]) + d[2].abs()) * 60.0 / feed).max(floor),
+            Block::Rapid { .. } => floor,
+            Block::SpindleOn { .. } => config.spin_up.unwrap().as_secs_f64(),
+            _ => 0.0,
+        }
+    }
+
+    fn expected_duration(program: &Program, start: Pose, config: &SampleConfig) -> f64 {
+        program.steps(start).map(|s| seconds(&s, config)).sum()
+    }
+
+    /// A short whirling-like program: rapid in, M3, plunge, linked moves, retract, M5.
+    fn job() -> Program {
+        program(vec![
+            Block::Comment("test".into()),
+            rapid(0.0, -13.45, 1.25),
+            Block::SpindleOn { rpm: 1500.0 },
+            Block::Feed {
+                x: Some(2.5),
+                z: None,
+                c: None,
+                feed: 50.0,
+            },
+            linked(2.6315, -13.4492, 3.8185, 1.0 / 1403.28),
+            linked(2.7864, -13.4484, 6.5944, 1.0 / 1296.84),
+            Block::RebaseC { c: 0.0 },
+            linked(2.9671, -13.4476, 2.7325, 1.0 / 1317.5),
+            Block::ClearRebase,
+            linked(3.0, -13.4, 12.0, 0.0005),
+            rapid(0.0, -13.4, 12.0),
+            Block::SpindleOff,
+        ])
+    }
+
+    #[test]
+    fn set_points_lie_on_the_straight_segments() {
+        let config = config();
+        let start = Pose::known(0.0, 0.0, 0.0);
+        let program = job();
+        let sp = sample(&program, start, &config).unwrap();
+        let scale = config.counts_per_unit;
+        let period = config.period.as_secs_f64();
+        // The segments in program units, with their times, from the program itself.
+        let mut segments = Vec::new();
+        let mut t = 0.0;
+        for step in program.steps(start) {
+            let from = Axis::ALL.map(|a| step.from.get(a).unwrap());
+            let to = Axis::ALL.map(|a| step.to.get(a).unwrap());
+            let d = seconds(&step, &config);
+            if d > 0.0 {
+                segments.push((from, to, t, t + d));
+            }
+            t += d;
+        }
+        for (k, point) in sp.points.iter().enumerate() {
+            let time = (k + 1) as f64 * period;
+            let &(from, to, t0, t1) = segments
+                .iter()
+                .find(|s| time < s.3)
+                .unwrap_or(segments.last().unwrap());
+            let f = ((time - t0) / (t1 - t0)).min(1.0);
+            for i in 0..3 {
+                let exact = (from[i] + (to[i] - from[i]) * f) * scale[i];
+                // Half a count for the ends' rounding, half for the fraction's.
+                assert!(
+                    (point[i] as f64 - exact).abs() <= 1.0 + 1e-6,
+                    "point {k} axis {i}: {} vs {exact}",
+                    point[i]
+                );
+            }
+        }
+        assert_eq!(sp.end(), [0, -134_000, (12.0 * scale[2]).round() as i64]);
+    }
+
+    #[test]
+    fn consecutive_set_points_stay_within_max_rate_times_period() {
+        let config = config();
+        let sp = sample(&job(), Pose::known(0.0, 0.0, 0.0), &config).unwrap();
+        let period = config.period.as_secs_f64();
+        let limit: [f64; 3] =
+            std::array::from_fn(|i| config.max_rate[i] / 60.0 * period * config.counts_per_unit[i]);
+        let mut previous = sp.start;
+        let mut fastest = [0i64; 3];
+        for point in &sp.points {
+            for i in 0..3 {
+                let step = (point[i] - previous[i]).abs();
+                // One count of quantization on top of the rate.
+                assert!(
+                    step as f64 <= limit[i] + 1.0,
+                    "axis {i}: {step} > {}",
+                    limit[i]
+                );
+                fastest[i] = fastest[i].max(step);
+            }
+            previous = *point;
+        }
+        // The rapids reach the limits (X and Z: 2000 counts a 4 ms cycle at 50 mm/s).
+        for i in 0..2 {
+            assert!(
+                fastest[i] as f64 >= limit[i] - 1.0,
+                "axis {i}: {}",
+                fastest[i]
+            );
+        }
+    }
+
+    #[test]
+    fn the_cycles_span_the_programs_duration_within_one_cycle() {
+        for period_ms in [2, 4, 5, 10] {
+            let config = SampleConfig {
+                period: period_ms * MS,
+                ..config()
+            };
+            let start = Pose::known(0.0, 0.0, 0.0);
+            let sp = sample(&job(), start, &config).unwrap();
+            let expected = expected_duration(&job(), start, &config);
+            assert!((sp.duration() - expected).abs() < 1e-9);
+            let spanned = sp.points.len() as f64 * config.period.as_secs_f64();
+            assert!(
+                spanned >= expected - 1e-9 && spanned < expected + config.period.as_secs_f64(),
+                "{period_ms} ms: {spanned} s for {expected} s"
+            );
+            // The last set-point is the program's end, exactly.
+            let c_end = (12.0 * config.counts_per_unit[2]).round() as i64;
+            assert_eq!(sp.end(), [0, -134_000, c_end]);
+        }
+    }
+
+    #[test]
+    fn c_beyond_700_000_degrees_stays_exact() {
+        // 10 000 counts a degree: 700 000° is 7·10⁹ counts, beyond INTEGER32.
+        let config = SampleConfig {
+            counts_per_unit: [10_000.0, 10_000.0, 10_000.0],
+            spin_up: None,
+            ..config()
+        };
+        let c0 = 700_000.0;
+        let start = Pose::known(30.0, 0.0, c0);
+        // Two turns in 0.01 min each, the second a thousandth of a degree short.
+        let program = program(vec![
+            linked(30.0, 0.5, c0 + 360.0, 0.01),
+            linked(30.0, 1.0, c0 + 719.999, 0.01),
+        ]);
+        let sp = sample(&program, start, &config).unwrap();
+        assert!(sp.start[2] > i64::from(i32::MAX));
+        assert_eq!(sp.start[2], 7_000_000_000);
+        assert_eq!(sp.moves[0].to[2], 7_003_600_000);
+        assert_eq!(sp.end()[2], 7_007_199_990);
+        // 0.6 s a move at 4 ms: 150 cycles each, the move's end exactly on its last one.
+        assert_eq!(sp.points.len(), 300);
+        assert_eq!(sp.points[149][2], 7_003_600_000);
+        // Equal turns give equal steps: 3 600 000 counts in 150 cycles, 24 000 each.
+        for k in 0..150 {
+            assert_eq!(sp.points[k][2], 7_000_000_000 + 24_000 * (k as i64 + 1));
+        }
+        // On the wire the low 32 bits: differences survive the wrap, and a drive's 32-bit
+        // position reads back as the path's counts.
+        let mut previous = sp.start[2];
+        for point in &sp.points {
+            let wire_step = to_wire(point[2]).wrapping_sub(to_wire(previous));
+            assert_eq!(i64::from(wire_step), point[2] - previous);
+            assert_eq!(unwrap_near(to_wire(point[2]), previous), point[2]);
+            previous = point[2];
+        }
+        assert_eq!(to_wire(7_000_000_000), 7_000_000_000_i64 as i32);
+        assert_eq!(unwrap_near(to_wire(-5), 3), -5);
+        assert_eq!(
+            unwrap_near(i32::MIN, i64::from(i32::MAX)),
+            i64::from(i32::MAX) + 1
+        );
+    }
+
+    #[test]
+    fn a_move_faster_than_an_axis_allows_is_slowed() {
+        let config = config();
+        // 10 mm of X in 0.1 min is 100 mm/min, fine; 10 mm in 0.001 min is 10 000 mm/min,
+        // above 3000: it takes 10 / 50 mm/s = 0.2 s instead of 0.06 s.
+        let program = program(vec![
+            linked(10.0, 0.0, 0.0, 0.1),
+            linked(20.0, 0.0, 0.0, 0.001),
+        ]);
+        let sp = sample(&program, Pose::known(0.0, 0.0, 0.0), &config).unwrap();
+        assert!(!sp.moves[0].slowed);
+        assert!(sp.moves[1].slowed);
+        assert!((sp.moves[0].duration - 6.0).abs() < 1e-9);
+        assert!((sp.moves[1].duration - 0.2).abs() < 1e-9);
+        assert_eq!(sp.points.len(), 1550);
+        for pair in sp.points[1500..].windows(2) {
+            assert_eq!(pair[1][0] - pair[0][0], 2000);
+        }
+    }
+
+    #[test]
+    fn feeds_run_along_x_and_z_or_c_alone() {
+        let config = SampleConfig {
+            spin_up: None,
+            ..config()
+        };
+        let feed =
+            |x: Option<f64>, z: Option<f64>, c: Option<f64>, feed| Block::Feed { x, z, c, feed };
+        // 3-4-5: 5 mm at 60 mm/min is 5 s; C alone, 90° at 1800 deg/min is 3 s.
+        let program = program(vec![
+            feed(Some(3.0), Some(4.0), None, 60.0),
+            feed(None, None, Some(90.0), 1800.0),
+        ]);
+        let sp = sample(&program, Pose::known(0.0, 0.0, 0.0), &config).unwrap();
+        assert!((sp.moves[0].duration - 5.0).abs() < 1e-9);
+        assert!((sp.moves[1].duration - 3.0).abs() < 1e-9);
+        assert_eq!(sp.points.len(), 2000);
+        let mixed = Program {
+            blocks: vec![feed(Some(1.0), None, Some(1.0), 100.0)],
+        };
+        let err = sample(&mixed, Pose::known(0.0, 0.0, 0.0), &config).unwrap_err();
+        assert_eq!(err, SampleError::MixedFeed { block: 0 });
+        assert!(err.to_string().contains("feeds C together with X or Z"));
+    }
+
+    #[test]
+    fn spindle_blocks_are_marks_with_a_spin_up_hold_or_refused() {
+        let config = config();
+        let sp = sample(&job(), Pose::known(0.0, 0.0, 0.0), &config).unwrap();
+        // The rapid in takes 13.45 mm / 50 mm/s = 0.269 s: M3 is due once cycle 68
+        // (0.272 s, the first at or past it) is sent, and the motion holds 500 ms from
+        // 0.269 s.
+        assert_eq!(
+            sp.marks[0],
+            Mark {
+                block: 2,
+                cycle: 68,
+                spindle: Some(1500.0)
+            }
+        );
+        let held = sp.points[67];
+        assert_eq!(
+            held,
+            [
+                0,
+                -134_500,
+                (1.25 * config.counts_per_unit[2]).round() as i64
+            ]
+        );
+        let hold_end = ((0.269 + 0.5) / 0.004_f64).floor() as usize;
+        assert!(sp.points[67..hold_end].iter().all(|p| *p == held));
+        assert_ne!(sp.points[66], held);
+        assert_ne!(sp.points[hold_end], held);
+        assert_eq!(sp.marks[1].block, 11);
+        assert_eq!(sp.marks[1].spindle, None);
+        assert_eq!(sp.marks[1].cycle, sp.points.len());
+        // No spin-up: the ring is not the bridge's, M3 and M5 are refused by block.
+        let refuse = SampleConfig {
+            spin_up: None,
+            ..config.clone()
+        };
+        let err = sample(&job(), Pose::known(0.0, 0.0, 0.0), &refuse).unwrap_err();
+        assert_eq!(err, SampleError::Spindle { block: 2 });
+        assert!(err.to_string().starts_with("block 2 (block index"));
+        let off = program(vec![Block::SpindleOff]);
+        assert_eq!(
+            sample(&off, Pose::known(0.0, 0.0, 0.0), &refuse),
+            Err(SampleError::Spindle { block: 0 })
+        );
+        // A zero spin-up marks without holding.
+        let none = SampleConfig {
+            spin_up: Some(Duration::ZERO),
+            ..config
+        };
+        let sp = sample(&job(), Pose::known(0.0, 0.0, 0.0), &none).unwrap();
+        assert!(sp.moves.iter().all(|m| m.block != 2));
+        assert_eq!(sp.marks.len(), 2);
+    }
+
+    #[test]
+    fn an_unknown_or_broken_start_is_refused() {
+        let config = config();
+        let err = sample(&job(), Pose::UNKNOWN, &config).unwrap_err();
+        assert!(matches!(err, SampleError::Start { axis: Axis::X, .. }));
+        assert!(err.to_string().starts_with("start X: not known"));
+        let partly = Pose {
+            c: None,
+            ..Pose::known(0.0, 0.0, 0.0)
+        };
+        assert!(matches!(
+            sample(&job(), partly, &config),
+            Err(SampleError::Start { axis: Axis::C, .. })
+        ));
+        let err = sample(&job(), Pose::known(0.0, f64::NAN, 0.0), &config).unwrap_err();
+        assert_eq!(err.to_string(), "start Z: NaN is not finite");
+        // Outside what a linear axis's INTEGER32 holds: 300 m at 10 000 counts a mm.
+        let err = sample(&job(), Pose::known(300_000.0, 0.0, 0.0), &config).unwrap_err();
+        assert_eq!(
+            err,
+            SampleError::Range {
+                block: None,
+                axis: Axis::X,
+                value: 300_000.0,
+                counts: 3e9,
+                limit: "INTEGER32, which a linear axis's target must fit"
+            }
+        );
+        assert_eq!(
+            err.to_string(),
+            "start X 300000 is 3000000000 counts, beyond INTEGER32, which a linear axis's \
+             target must fit"
+        );
+    }
+
+    #[test]
+    fn impossible_blocks_are_refused_by_index() {
+        let config = config();
+        let start = Pose::known(0.0, 0.0, 0.0);
+        let cases = [
+            (
+                linked(1.0, 0.0, 0.0, 0.0),
+                "move time 0 min is not above zero",
+            ),
+            (
+                linked(1.0, 0.0, 0.0, f64::NAN),
+                "move time NaN min is not above zero",
+            ),
+            (
+                Block::Feed {
+                    x: Some(1.0),
+                    z: None,
+                    c: None,
+                    feed: -5.0,
+                },
+                "feed -5 is not above zero",
+            ),
+            (rapid(f64::INFINITY, 0.0, 0.0), "X target inf is not finite"),
+            (
+                Block::RebaseC { c: f64::NAN },
+                "G92 C value NaN is not finite",
+            ),
+            (
+                Block::SpindleOn { rpm: 0.0 },
+                "spindle speed 0 rpm is not above zero",
+            ),
+        ];
+        for (block, problem) in cases {
+            let program = program(vec![Block::Comment("first".into()), block]);
+            assert_eq!(
+                sample(&program, start, &config),
+                Err(SampleError::InvalidBlock {
+                    block: 1,
+                    problem: problem.into()
+                })
+            );
+        }
+        // C beyond 2^53 counts; Z beyond INTEGER32.
+        let far = program(vec![rapid(0.0, 0.0, 1e13)]);
+        let err = sample(&far, start, &config).unwrap_err();
+        assert!(matches!(
+            err,
+            SampleError::Range {
+                block: Some(0),
+                axis: Axis::C,
+                ..
+            }
+        ));
+        assert!(err.to_string().contains("beyond 2^53"));
+        let long = program(vec![rapid(0.0, -250_000.0, 0.0)]);
+        assert!(matches!(
+            sample(&long, start, &config),
+            Err(SampleError::Range {
+                block: Some(0),
+                axis: Axis::Z,
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn bad_configurations_are_refused() {
+        let start = Pose::known(0.0, 0.0, 0.0);
+        let cases = [
+            (
+                SampleConfig {
+                    period: Duration::ZERO,
+                    ..config()
+                },
+                "set-point sampling: period 0ns must be a non-zero whole number of microseconds",
+            ),
+            (
+                SampleConfig {
+                    period: Duration::from_nanos(2_000_500),
+                    ..config()
+                },
+                "set-point sampling: period 2.0005ms must be a non-zero whole number of microseconds",
+            ),
+            (
+                SampleConfig {
+                    counts_per_unit: [1.0, 0.0, 1.0],
+                    ..config()
+                },
+                "set-point sampling: counts_per_unit 0 must be finite and above zero",
+            ),
+            (
+                SampleConfig {
+                    max_rate: [1.0, 1.0, f64::NAN],
+                    ..config()
+                },
+                "set-point sampling: max_rate NaN must be finite and above zero",
+            ),
+        ];
+        for (config, message) in cases {
+            assert_eq!(
+                sample(&job(), start, &config).unwrap_err().to_string(),
+                message
+            );
+        }
+    }
+
+    #[test]
+    fn a_program_without_motion_holds_the_start() {
+        let config = config();
+        let sp = sample(
+            &program(vec![Block::Comment("nothing".into())]),
+            Pose::known(1.0, 2.0, 3.0),
+            &config,
+        )
+        .unwrap();
+        assert!(sp.points.is_empty());
+        assert_eq!(sp.end(), sp.start);
+        assert_eq!(sp.start[0], 10_000);
+        assert_eq!(sp.duration(), 0.0);
+    }
+
+    #[test]
+    fn for_machine_takes_the_profiles_rates() {
+        let profile = MachineProfile::builtin_sim().unwrap();
+        let config = SampleConfig::for_machine(&profile, 2 * MS, [1.0; 3], None);
+        assert_eq!(config.max_rate, [3000.0, 3000.0, 72_000.0]);
+        assert_eq!(config.period, 2 * MS);
+    }
+}

@@ -1,0 +1,1288 @@
+//! The register map of `docs/modbus.md` as values: addresses, bits and codes, the word
+//! order of multi-register values, segments and their slots (sequence number and
+//! CRC-16/MODBUS), and the identification and status blocks decoded.
+//!
+//! Nothing here talks to a controller; [`super::RingWriter`] decides what to write when.
+//! Every number below is the document's; the tests check the encodings against values
+//! worked out by hand from it.
+
+use std::fmt;
+use std::time::Duration;
+
+use thiserror::Error;
+
+use crate::gcode::program::{Block, Program};
+
+/// The controller's Modbus unit id.
+pub const UNIT_ID: u8 = 1;
+/// `MAGIC_0`, `MAGIC_1`: ASCII "WHRL", two characters a register, high byte first.
+pub const MAGIC: [u16; 2] = [0x5748, 0x524C];
+/// The map version this module implements.
+pub const MAP_VERSION: u16 = 1;
+/// Registers per slot.
+pub const SLOT_SIZE: u16 = 16;
+/// Fewest slots a ring may have (one is always kept empty).
+pub const MIN_SLOTS: u16 = 2;
+/// Most slots a ring may have.
+pub const MAX_SLOTS: u16 = 64;
+/// Most registers one FC03 may read (Modbus application protocol, 6.3).
+pub const MAX_READ: u16 = 125;
+/// Most registers one FC16 may write (Modbus application protocol, 6.12).
+pub const MAX_WRITE: u16 = 123;
+
+/// Holding-register addresses, 0-based as on the wire.
+pub mod reg {
+    /// `MAGIC_0`, `MAGIC_1`.
+    pub const MAGIC: u16 = 0;
+    /// `MAP_VERSION`.
+    pub const MAP_VERSION: u16 = 2;
+    /// `SLOT_COUNT`: N.
+    pub const SLOT_COUNT: u16 = 3;
+    /// `SLOT_SIZE`.
+    pub const SLOT_SIZE: u16 = 4;
+    /// `WORD_ORDER`: 0 high word first, 1 low word first.
+    pub const WORD_ORDER: u16 = 5;
+    /// `MAX_SEGMENT_RATE`, segments per second.
+    pub const MAX_SEGMENT_RATE: u16 = 6;
+    /// `WATCHDOG_TIMEOUT`, ms.
+    pub const WATCHDOG_TIMEOUT: u16 = 7;
+    /// Registers in the identification block (0–7).
+    pub const IDENT_LEN: u16 = 8;
+
+    /// `STATE`, the first status register.
+    pub const STATE: u16 = 16;
+    /// `ALARM_CODE`.
+    pub const ALARM_CODE: u16 = 17;
+    /// `ALARM_SEQ`, u32.
+    pub const ALARM_SEQ: u16 = 18;
+    /// `ALARM_DETAIL`.
+    pub const ALARM_DETAIL: u16 = 20;
+    /// `TAIL`.
+    pub const TAIL: u16 = 21;
+    /// `EXECUTED_SEQ`, u32.
+    pub const EXECUTED_SEQ: u16 = 22;
+    /// `POS_X`, i32, 0.1 µm.
+    pub const POS_X: u16 = 24;
+    /// `POS_Z`, i32, 0.1 µm.
+    pub const POS_Z: u16 = 26;
+    /// `POS_C`, i64, 10⁻⁴ °.
+    pub const POS_C: u16 = 28;
+    /// `CONTROL`, the control word.
+    pub const CONTROL: u16 = 32;
+    /// `HEAD`.
+    pub const HEAD: u16 = 33;
+    /// `WATCHDOG`.
+    pub const WATCHDOG: u16 = 34;
+    /// Registers in the status and control blocks read together (16–34).
+    pub const STATUS_LEN: u16 = 19;
+
+    /// Slot 0; slot i is at `RING + 16·i`.
+    pub const RING: u16 = 256;
+}
+
+/// Bits of the control word.
+pub mod control {
+    /// Level: take slots while set.
+    pub const RUN: u16 = 1 << 0;
+    /// Rising edge: feed hold.
+    pub const HOLD: u16 = 1 << 1;
+    /// Rising edge: cycle start after a hold.
+    pub const RESUME: u16 = 1 << 2;
+    /// Rising edge: clear the alarm and flush the ring.
+    pub const RESET_ALARM: u16 = 1 << 3;
+    /// Rising edge: stop and flush the ring.
+    pub const ABORT: u16 = 1 << 4;
+    /// Level: end of stream, no more slots will come.
+    pub const END: u16 = 1 << 5;
+}
+
+/// Segment kinds, the low byte of a slot's `KIND` register.
+pub mod kind {
+    /// A linked C/X/Z move in inverse time.
+    pub const LINKED: u16 = 1;
+    /// A rapid.
+    pub const RAPID: u16 = 2;
+    /// A feed move in units per minute.
+    pub const FEED: u16 = 3;
+    /// A dwell.
+    pub const DWELL: u16 = 4;
+    /// Spindle (the whirling ring) on, clockwise.
+    pub const SPINDLE_ON: u16 = 5;
+    /// Spindle off.
+    pub const SPINDLE_OFF: u16 = 6;
+    /// Program end.
+    pub const PROGRAM_END: u16 = 7;
+}
+
+/// Axis flags, the high byte of a slot's `KIND` register: the axis moves to the target
+/// given.
+pub mod flag {
+    /// X moves.
+    pub const X: u16 = 1 << 8;
+    /// Z moves.
+    pub const Z: u16 = 1 << 9;
+    /// C moves.
+    pub const C: u16 = 1 << 10;
+}
+
+/// X and Z units per millimetre (0.1 µm).
+pub const LINEAR_UNITS_PER_MM: f64 = 1e4;
+/// C units per degree (10⁻⁴ °).
+pub const ANGULAR_UNITS_PER_DEG: f64 = 1e4;
+
+/// Why registers could not be encoded or decoded, or a program carried.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum MapError {
+    /// A program block the map cannot carry.
+    #[error("block {index} ({block}): {reason}")]
+    Block {
+        /// Its index in [`Program::blocks`].
+        index: usize,
+        /// The block, briefly.
+        block: String,
+        /// Why.
+        reason: String,
+    },
+    /// A register of the identification or status block holds a value this map does not
+    /// allow.
+    #[error("register {register} holds {value:#06x}: {reason}")]
+    Register {
+        /// Its address.
+        register: u16,
+        /// What it held.
+        value: u16,
+        /// What was expected.
+        reason: &'static str,
+    },
+    /// A block decoded from the wrong number of registers.
+    #[error("{what}: expected {expected} registers, got {got}")]
+    Length {
+        /// Which block.
+        what: &'static str,
+        /// Registers it has.
+        expected: usize,
+        /// Registers given.
+        got: usize,
+    },
+    /// A linked move shorter than the controller can execute at its programmed duration.
+    #[error(
+        "segment {index} lasts {duration_us} µs; the controller \
+         executes at most {rate} segments/s, so at least {min_us} µs"
+    )]
+    TooShort {
+        /// Its index in the segment list.
+        index: usize,
+        /// Its duration, µs.
+        duration_us: u32,
+        /// `MAX_SEGMENT_RATE`.
+        rate: u16,
+        /// The shortest duration that rate allows, µs.
+        min_us: u32,
+    },
+}
+
+/// How a 32- or 64-bit value is spread over consecutive registers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum WordOrder {
+    /// Most significant word at the lowest address (register value 0, the default).
+    #[default]
+    HighFirst,
+    /// Least significant word at the lowest address (register value 1).
+    LowFirst,
+}
+
+impl WordOrder {
+    /// From the `WORD_ORDER` register.
+    pub fn from_register(value: u16) -> Result<WordOrder, MapError> {
+        match value {
+            0 => Ok(WordOrder::HighFirst),
+            1 => Ok(WordOrder::LowFirst),
+            _ => Err(MapError::Register {
+                register: reg::WORD_ORDER,
+                value,
+                reason: "word order must be 0 (high word first) or 1 (low word first)",
+            }),
+        }
+    }
+
+    /// The `WORD_ORDER` register's value.
+    pub fn register(self) -> u16 {
+        match self {
+            WordOrder::HighFirst => 0,
+            WordOrder::LowFirst => 1,
+        }
+    }
+
+    /// `value` as two registers, in address order.
+    pub fn u32_words(self, value: u32) -> [u16; 2] {
+        let words = [(value >> 16) as u16, value as u16];
+        self.arrange(words)
+    }
+
+    /// Two registers, in address order, as a u32.
+    pub fn u32_from(self, words: [u16; 2]) -> u32 {
+        let [high, low] = self.arrange(words);
+        (u32::from(high) << 16) | u32::from(low)
+    }
+
+    /// `value` as four registers, in address order.
+    pub fn i64_words(self, value: i64) -> [u16; 4] {
+        let v = value as u64;
+        let words = [
+            (v >> 48) as u16,
+            (v >> 32) as u16,
+            (v >> 16) as u16,
+            v as u16,
+        ];
+        self.arrange(words)
+    }
+
+    /// Four registers, in address order, as an i64.
+    pub fn i64_from(self, words: [u16; 4]) -> i64 {
+        let [a, b, c, d] = self.arrange(words);
+        ((u64::from(a) << 48) | (u64::from(b) << 32) | (u64::from(c) << 16) | u64::from(d)) as i64
+    }
+
+    /// Words most significant first ↔ address order: the identity or a reversal, which
+    /// is its own inverse.
+    fn arrange<const N: usize>(self, mut words: [u16; N]) -> [u16; N] {
+        if self == WordOrder::LowFirst {
+            words.reverse();
+        }
+        words
+    }
+}
+
+/// CRC-16/MODBUS lookup table (reflected polynomial 0xA001), built at compile time.
+const CRC_TABLE: [u16; 256] = {
+    let mut table = [0u16; 256];
+    let mut i = 0;
+    while i < 256 {
+        let mut crc = i as u16;
+        let mut bit = 0;
+        while bit < 8 {
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xA001
+            } else {
+                crc >> 1
+            };
+            bit += 1;
+        }
+        table[i] = crc;
+        i += 1;
+    }
+    table
+};
+
+/// CRC-16/MODBUS of `bytes`: initial value 0xFFFF, reflected, no final XOR.
+pub fn crc16(bytes: &[u8]) -> u16 {
+    bytes.iter().fold(0xFFFF, |crc, &b| {
+        (crc >> 8) ^ CRC_TABLE[usize::from((crc ^ u16::from(b)) as u8)]
+    })
+}
+
+/// The CRC of a slot: over registers 0–14, each high byte first.
+pub fn slot_crc(registers: &[u16]) -> u16 {
+    let bytes: Vec<u8> = registers.iter().flat_map(|r| r.to_be_bytes()).collect();
+    crc16(&bytes)
+}
+
+/// One segment as a slot carries it, in the map's units: X and Z in 0.1 µm
+/// ([`LINEAR_UNITS_PER_MM`]), C in 10⁻⁴ ° ([`ANGULAR_UNITS_PER_DEG`]), absolute machine
+/// positions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Segment {
+    /// A linked C/X/Z move that takes `duration_us` (G93 G1).
+    Linked {
+        /// Target X, 0.1 µm (radius).
+        x: i32,
+        /// Target Z, 0.1 µm.
+        z: i32,
+        /// Target C, 10⁻⁴ °.
+        c: i64,
+        /// Duration, µs, at least 1.
+        duration_us: u32,
+    },
+    /// A rapid (G0); `None` axes do not move.
+    Rapid {
+        /// Target X, 0.1 µm.
+        x: Option<i32>,
+        /// Target Z, 0.1 µm.
+        z: Option<i32>,
+        /// Target C, 10⁻⁴ °.
+        c: Option<i64>,
+    },
+    /// A feed move in units per minute (G94 G1); `None` axes do not move.
+    Feed {
+        /// Target X, 0.1 µm.
+        x: Option<i32>,
+        /// Target Z, 0.1 µm.
+        z: Option<i32>,
+        /// Target C, 10⁻⁴ °.
+        c: Option<i64>,
+        /// Feed, 0.001 mm/min (0.001 deg/min for C alone), at least 1.
+        feed: u32,
+    },
+    /// A dwell (G4).
+    Dwell {
+        /// How long, µs.
+        duration_us: u32,
+    },
+    /// The whirling ring on, clockwise (M3 S).
+    SpindleOn {
+        /// Speed, 0.001 rev/min.
+        rpm: u32,
+    },
+    /// The whirling ring off (M5).
+    SpindleOff,
+    /// Program end (M2).
+    ProgramEnd,
+}
+
+impl Segment {
+    /// The slot carrying this segment as sequence number `sequence`, in address order,
+    /// with its CRC.
+    pub fn encode(&self, sequence: u32, order: WordOrder) -> [u16; SLOT_SIZE as usize] {
+        let (kind, x, z, c, param) = match *self {
+            Segment::Linked {
+                x,
+                z,
+                c,
+                duration_us,
+            } => (
+                kind::LINKED | flag::X | flag::Z | flag::C,
+                Some(x),
+                Some(z),
+                Some(c),
+                duration_us,
+            ),
+            Segment::Rapid { x, z, c } => (kind::RAPID | flags(x, z, c), x, z, c, 0),
+            Segment::Feed { x, z, c, feed } => (kind::FEED | flags(x, z, c), x, z, c, feed),
+            Segment::Dwell { duration_us } => (kind::DWELL, None, None, None, duration_us),
+            Segment::SpindleOn { rpm } => (kind::SPINDLE_ON, None, None, None, rpm),
+            Segment::SpindleOff => (kind::SPINDLE_OFF, None, None, None, 0),
+            Segment::ProgramEnd => (kind::PROGRAM_END, None, None, None, 0),
+        };
+        let mut slot = [0u16; SLOT_SIZE as usize];
+        slot[0..2].copy_from_slice(&order.u32_words(sequence));
+        slot[2] = kind;
+        slot[4..6].copy_from_slice(&order.u32_words(x.unwrap_or(0) as u32));
+        slot[6..8].copy_from_slice(&order.u32_words(z.unwrap_or(0) as u32));
+        slot[8..12].copy_from_slice(&order.i64_words(c.unwrap_or(0)));
+        slot[12..14].copy_from_slice(&order.u32_words(param));
+        slot[15] = slot_crc(&slot[..15]);
+        slot
+    }
+}
+
+/// The axis flags of the axes given.
+fn flags(x: Option<i32>, z: Option<i32>, c: Option<i64>) -> u16 {
+    let mut f = 0;
+    if x.is_some() {
+        f |= flag::X;
+    }
+    if z.is_some() {
+        f |= flag::Z;
+    }
+    if c.is_some() {
+        f |= flag::C;
+    }
+    f
+}
+
+/// The next sequence number after `sequence`: one more, from 4 294 967 295 back to 1
+/// (0 is never used).
+pub fn next_sequence(sequence: u32) -> u32 {
+    sequence.checked_add(1).unwrap_or(1)
+}
+
+/// `Program`'s blocks as segments, in order, with a [`Segment::ProgramEnd`] after the
+/// last (the program model leaves M2 to its writers, as the G-code post-processor writes
+/// it). Comments are dropped: nothing on the controller reads them.
+///
+/// Refused, naming the block: C renaming (`G92 C`, `G92.1`), since slots carry machine
+/// positions and the map has no work offsets; a value that is not finite or does not fit
+/// its field; a linked move or feed that rounds to zero.
+pub fn segments(program: &Program) -> Result<Vec<Segment>, MapError> {
+    let mut out = Vec::with_capacity(program.blocks.len() + 1);
+    for (index, block) in program.blocks.iter().enumerate() {
+        let refuse = |what: &str, reason: String| MapError::Block {
+            index,
+            block: what.to_owned(),
+            reason,
+        };
+        let linear = |what: &str, mm: f64| {
+            linear_units(mm).ok_or_else(|| {
+                refuse(
+                    what,
+                    format!("{mm} mm is not finite or beyond ±214 748.3647 mm (i32 of 0.1 µm)"),
+                )
+            })
+        };
+        let angular = |what: &str, deg: f64| {
+            angular_units(deg).ok_or_else(|| {
+                refuse(
+                    what,
+                    format!("{deg}° is not finite or beyond an i64 of 10⁻⁴ °"),
+                )
+            })
+        };
+        let segment = match *block {
+            Block::Comment(_) => continue,
+            Block::Rapid { x, z, c } => Segment::Rapid {
+                x: x.map(|v| linear("G0", v)).transpose()?,
+                z: z.map(|v| linear("G0", v)).transpose()?,
+                c: c.map(|v| angular("G0", v)).transpose()?,
+            },
+            Block::Feed { x, z, c, feed } => Segment::Feed {
+                x: x.map(|v| linear("G1", v)).transpose()?,
+                z: z.map(|v| linear("G1", v)).transpose()?,
+                c: c.map(|v| angular("G1", v)).transpose()?,
+                feed: thousandths(feed).filter(|&f| f > 0).ok_or_else(|| {
+                    refuse(
+                        "G1",
+                        format!("feed {feed} is not between 0.001 and 4 294 967.295 per minute"),
+                    )
+                })?,
+            },
+            Block::Linked { x, z, c, minutes } => Segment::Linked {
+                x: linear("G93 G1", x)?,
+                z: linear("G93 G1", z)?,
+                c: angular("G93 G1", c)?,
+                duration_us: micros(minutes * 60.0).filter(|&d| d > 0).ok_or_else(|| {
+                    refuse(
+                        "G93 G1",
+                        format!(
+                            "{minutes} min is not between 1 µs and 4 294.967295 s \
+                                 (u32 of µs)"
+                        ),
+                    )
+                })?,
+            },
+            Block::RebaseC { c } => {
+                return Err(refuse(
+                    &format!("G92 C{c}"),
+                    "renames C, and the map carries machine positions only (no work \
+                     offsets); plan without C rebasing"
+                        .into(),
+                ))
+            }
+            Block::ClearRebase => {
+                return Err(refuse(
+                    "G92.1",
+                    "clears work offsets, and the map has none: slots carry machine positions"
+                        .into(),
+                ))
+            }
+            Block::SpindleOn { rpm } => Segment::SpindleOn {
+                rpm: thousandths(rpm).ok_or_else(|| {
+                    refuse(
+                        "M3",
+                        format!("{rpm} rpm is not between 0 and 4 294 967.295 rpm"),
+                    )
+                })?,
+            },
+            Block::SpindleOff => Segment::SpindleOff,
+        };
+        out.push(segment);
+    }
+    out.push(Segment::ProgramEnd);
+    Ok(out)
+}
+
+/// Millimetres as 0.1 µm, rounded to nearest, if finite and within i32.
+fn linear_units(mm: f64) -> Option<i32> {
+    let v = (mm * LINEAR_UNITS_PER_MM).round();
+    (f64::from(i32::MIN)..=f64::from(i32::MAX))
+        .contains(&v)
+        .then_some(v as i32)
+}
+
+/// Degrees as 10⁻⁴ °, rounded to nearest, if finite and within i64.
+fn angular_units(deg: f64) -> Option<i64> {
+    let v = (deg * ANGULAR_UNITS_PER_DEG).round();
+    // −2⁶³ and 2⁶³ are exact in f64; i64 holds [−2⁶³, 2⁶³).
+    (-9_223_372_036_854_775_808.0..9_223_372_036_854_775_808.0)
+        .contains(&v)
+        .then_some(v as i64)
+}
+
+/// A value in thousandths, rounded to nearest, if finite and within u32.
+fn thousandths(value: f64) -> Option<u32> {
+    let v = (value * 1000.0).round();
+    (0.0..=f64::from(u32::MAX)).contains(&v).then_some(v as u32)
+}
+
+/// Seconds as µs, rounded to nearest, if finite and within u32.
+fn micros(seconds: f64) -> Option<u32> {
+    let v = (seconds * 1e6).round();
+    (0.0..=f64::from(u32::MAX)).contains(&v).then_some(v as u32)
+}
+
+/// Checks that every linked move lasts at least 1 / `max_rate` s: a shorter one would
+/// run slower than planned on a controller that executes at most `max_rate` segments a
+/// second. Names the first that does not.
+pub fn check_rate(segments: &[Segment], max_rate: u16) -> Result<(), MapError> {
+    let min_us = 1_000_000u32.div_ceil(u32::from(max_rate.max(1)));
+    for (index, segment) in segments.iter().enumerate() {
+        if let Segment::Linked { duration_us, .. } = *segment {
+            if duration_us < min_us {
+                return Err(MapError::TooShort {
+                    index,
+                    duration_us,
+                    rate: max_rate,
+                    min_us,
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The identification block (registers 0–7).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Identification {
+    /// N, slots in the ring.
+    pub slots: u16,
+    /// How the controller orders the words of 32- and 64-bit values.
+    pub word_order: WordOrder,
+    /// Most segments per second the controller executes at their programmed duration.
+    pub max_segment_rate: u16,
+    /// The watchdog's timeout.
+    pub watchdog_timeout: Duration,
+}
+
+impl Identification {
+    /// Decodes registers 0–7, checking the magic, the version, the slot size and that
+    /// every value is one the map allows.
+    pub fn decode(registers: &[u16]) -> Result<Identification, MapError> {
+        let r = exact::<{ reg::IDENT_LEN as usize }>(registers, "identification block")?;
+        let bad = |register: u16, reason| {
+            Err(MapError::Register {
+                register,
+                value: r[usize::from(register)],
+                reason,
+            })
+        };
+        if r[0] != MAGIC[0] {
+            return bad(
+                reg::MAGIC,
+                "not a whirl register map (magic \"WH\" expected)",
+            );
+        }
+        if r[1] != MAGIC[1] {
+            return bad(
+                reg::MAGIC + 1,
+                "not a whirl register map (magic \"RL\" expected)",
+            );
+        }
+        if r[2] != MAP_VERSION {
+            return bad(reg::MAP_VERSION, "map version 1 expected");
+        }
+        if !(MIN_SLOTS..=MAX_SLOTS).contains(&r[3]) {
+            return bad(reg::SLOT_COUNT, "slot count must be 2 to 64");
+        }
+        if r[4] != SLOT_SIZE {
+            return bad(reg::SLOT_SIZE, "slot size 16 expected");
+        }
+        let word_order = WordOrder::from_register(r[5])?;
+        if r[6] == 0 {
+            return bad(
+                reg::MAX_SEGMENT_RATE,
+                "a segment rate of 0 executes nothing",
+            );
+        }
+        if r[7] == 0 {
+            return bad(
+                reg::WATCHDOG_TIMEOUT,
+                "a watchdog timeout of 0 ms cannot be met",
+            );
+        }
+        Ok(Identification {
+            slots: r[3],
+            word_order,
+            max_segment_rate: r[6],
+            watchdog_timeout: Duration::from_millis(u64::from(r[7])),
+        })
+    }
+}
+
+/// The controller's state (`STATE`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum State {
+    /// 0: nothing to do, or slots waiting with `RUN` clear.
+    Idle,
+    /// 1: moving, or executing a queued segment.
+    Running,
+    /// 2: a feed hold (or an abort coming to rest).
+    Held,
+    /// 3: an alarm is active.
+    Alarm,
+    /// 4: `END` set, the ring empty and everything executed.
+    Done,
+}
+
+impl State {
+    /// From the `STATE` register.
+    pub fn from_register(value: u16) -> Result<State, MapError> {
+        Ok(match value {
+            0 => State::Idle,
+            1 => State::Running,
+            2 => State::Held,
+            3 => State::Alarm,
+            4 => State::Done,
+            _ => {
+                return Err(MapError::Register {
+                    register: reg::STATE,
+                    value,
+                    reason: "state must be 0 to 4",
+                })
+            }
+        })
+    }
+}
+
+/// An alarm code (`ALARM_CODE`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AlarmCode {
+    /// 2: a target outside the travel (grbl's `ALARM:2`).
+    SoftLimit,
+    /// 3: reset while moving (grbl's `ALARM:3`).
+    AbortCycle,
+    /// 64: the Δ guard measured the cut beyond Δ (whirl-sim's `ALARM:64`).
+    ProfileError,
+    /// 101: a published slot failed its CRC.
+    SlotCrc,
+    /// 102: a published slot's sequence number was not the one expected.
+    Sequence,
+    /// 103: a published slot's content was not a valid segment.
+    Segment,
+    /// 104: the watchdog was not fed in time.
+    Watchdog,
+    /// 105: the controller refused a segment.
+    Refused,
+    /// Another controller alarm, by number.
+    Other(u16),
+}
+
+impl AlarmCode {
+    /// From the `ALARM_CODE` register; `None` for 0 (no alarm).
+    pub fn from_register(value: u16) -> Option<AlarmCode> {
+        Some(match value {
+            0 => return None,
+            2 => AlarmCode::SoftLimit,
+            3 => AlarmCode::AbortCycle,
+            64 => AlarmCode::ProfileError,
+            101 => AlarmCode::SlotCrc,
+            102 => AlarmCode::Sequence,
+            103 => AlarmCode::Segment,
+            104 => AlarmCode::Watchdog,
+            105 => AlarmCode::Refused,
+            other => AlarmCode::Other(other),
+        })
+    }
+
+    /// The register value.
+    pub fn code(self) -> u16 {
+        match self {
+            AlarmCode::SoftLimit => 2,
+            AlarmCode::AbortCycle => 3,
+            AlarmCode::ProfileError => 64,
+            AlarmCode::SlotCrc => 101,
+            AlarmCode::Sequence => 102,
+            AlarmCode::Segment => 103,
+            AlarmCode::Watchdog => 104,
+            AlarmCode::Refused => 105,
+            AlarmCode::Other(code) => code,
+        }
+    }
+}
+
+impl fmt::Display for AlarmCode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let text = match self {
+            AlarmCode::SoftLimit => "target outside the travel",
+            AlarmCode::AbortCycle => "reset while moving",
+            AlarmCode::ProfileError => "profile error beyond Δ",
+            AlarmCode::SlotCrc => "slot CRC",
+            AlarmCode::Sequence => "sequence number out of order",
+            AlarmCode::Segment => "invalid segment",
+            AlarmCode::Watchdog => "watchdog",
+            AlarmCode::Refused => "segment refused by the controller",
+            AlarmCode::Other(_) => "controller alarm",
+        };
+        write!(f, "alarm {} ({text})", self.code())
+    }
+}
+
+/// An active alarm with what it concerns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AlarmReport {
+    /// Which.
+    pub code: AlarmCode,
+    /// `ALARM_SEQ`: the segment it refused, 0 if none.
+    pub sequence: u32,
+    /// `ALARM_DETAIL`: the controller's error number for a refused segment, else 0.
+    pub detail: u16,
+}
+
+impl fmt::Display for AlarmReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.code)?;
+        if self.sequence != 0 {
+            write!(f, " at segment {}", self.sequence)?;
+        }
+        if self.detail != 0 {
+            write!(f, ", controller error {}", self.detail)?;
+        }
+        Ok(())
+    }
+}
+
+/// The status and control blocks (registers 16–34), as one read returns them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Status {
+    /// `STATE`.
+    pub state: State,
+    /// The active alarm, if `ALARM_CODE` is not 0.
+    pub alarm: Option<AlarmReport>,
+    /// `TAIL`.
+    pub tail: u16,
+    /// `EXECUTED_SEQ`.
+    pub executed: u32,
+    /// `POS_X`, 0.1 µm.
+    pub x: i32,
+    /// `POS_Z`, 0.1 µm.
+    pub z: i32,
+    /// `POS_C`, 10⁻⁴ °.
+    pub c: i64,
+    /// `CONTROL` as last written.
+    pub control: u16,
+    /// `HEAD`.
+    pub head: u16,
+    /// `WATCHDOG` as last written.
+    pub watchdog: u16,
+}
+
+impl Status {
+    /// Decodes registers 16–34 with the controller's word order.
+    pub fn decode(registers: &[u16], order: WordOrder) -> Result<Status, MapError> {
+        let r = exact::<{ reg::STATUS_LEN as usize }>(registers, "status block")?;
+        let at = |register: u16| usize::from(register - reg::STATE);
+        let u32_at = |register: u16| order.u32_from([r[at(register)], r[at(register) + 1]]);
+        let i = at(reg::POS_C);
+        let state = State::from_register(r[at(reg::STATE)])?;
+        let code = r[at(reg::ALARM_CODE)];
+        let alarm = AlarmCode::from_register(code).map(|code| AlarmReport {
+            code,
+            sequence: u32_at(reg::ALARM_SEQ),
+            detail: r[at(reg::ALARM_DETAIL)],
+        });
+        if (state == State::Alarm) != alarm.is_some() {
+            return Err(MapError::Register {
+                register: reg::ALARM_CODE,
+                value: code,
+                reason: "an alarm code goes with state 3 (alarm), and only with it",
+            });
+        }
+        Ok(Status {
+            state,
+            alarm,
+            tail: r[at(reg::TAIL)],
+            executed: u32_at(reg::EXECUTED_SEQ),
+            x: u32_at(reg::POS_X) as i32,
+            z: u32_at(reg::POS_Z) as i32,
+            c: order.i64_from([r[i], r[i + 1], r[i + 2], r[i + 3]]),
+            control: r[at(reg::CONTROL)],
+            head: r[at(reg::HEAD)],
+            watchdog: r[at(reg::WATCHDOG)],
+        })
+    }
+
+    /// The machine position, mm (X as a radius), mm, degrees.
+    pub fn position(&self) -> [f64; 3] {
+        [
+            f64::from(self.x) / LINEAR_UNITS_PER_MM,
+            f64::from(self.z) / LINEAR_UNITS_PER_MM,
+            self.c as f64 / ANGULAR_UNITS_PER_DEG,
+        ]
+    }
+}
+
+/// `registers` as an array of exactly `N`.
+fn exact<const N: usize>(registers: &[u16], what: &'static str) -> Result<[u16; N], MapError> {
+    registers.try_into().map_err(|_| MapError::Length {
+        what,
+        expected: N,
+        got: registers.len(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crc_is_crc16_modbus() {
+        // The catalogue check value of CRC-16/MODBUS (init 0xFFFF, poly 0x8005 reflected,
+        // no final XOR) over ASCII "123456789".
+        assert_eq!(crc16(b"123456789"), 0x4B37);
+        // The empty message leaves the initial value.
+        assert_eq!(crc16(b""), 0xFFFF);
+        // The slot CRC reads each register high byte first.
+        assert_eq!(slot_crc(&[0x3132, 0x3334]), crc16(b"1234"));
+    }
+
+    #[test]
+    fn word_orders() {
+        // 0x12345678: high word 0x1234 first by default, reversed for low word first.
+        assert_eq!(
+            WordOrder::HighFirst.u32_words(0x1234_5678),
+            [0x1234, 0x5678]
+        );
+        assert_eq!(WordOrder::LowFirst.u32_words(0x1234_5678), [0x5678, 0x1234]);
+        assert_eq!(WordOrder::LowFirst.u32_from([0x5678, 0x1234]), 0x1234_5678);
+        // −1 as i32 is all ones in two's complement.
+        assert_eq!(
+            WordOrder::HighFirst.u32_words(-1i32 as u32),
+            [0xFFFF, 0xFFFF]
+        );
+        let v = 0x0102_0304_0506_0708i64;
+        assert_eq!(
+            WordOrder::HighFirst.i64_words(v),
+            [0x0102, 0x0304, 0x0506, 0x0708]
+        );
+        assert_eq!(
+            WordOrder::LowFirst.i64_words(v),
+            [0x0708, 0x0506, 0x0304, 0x0102]
+        );
+        for order in [WordOrder::HighFirst, WordOrder::LowFirst] {
+            for v in [0, 1, -1, i64::MIN, i64::MAX, -7_000_001_234] {
+                assert_eq!(order.i64_from(order.i64_words(v)), v);
+            }
+        }
+        assert_eq!(WordOrder::default(), WordOrder::HighFirst);
+        assert_eq!(WordOrder::from_register(1), Ok(WordOrder::LowFirst));
+        assert_eq!(WordOrder::LowFirst.register(), 1);
+        assert!(matches!(
+            WordOrder::from_register(2),
+            Err(MapError::Register {
+                register: 5,
+                value: 2,
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn c_near_700_000_degrees_is_held_exactly() {
+        // 700 000.1234° = 7 000 001 234 units of 10⁻⁴ °, beyond i32 (2 147 483 647):
+        // 7 000 001 234 = 0x0000_0001_A13B_8CD2... worked out: 7 000 001 234 − 2³² =
+        // 2 705 033 938 = 0xA13B_86D2, so the words are 0x0000 0x0001 0xA13B 0x8AD2.
+        let program = Program {
+            blocks: vec![Block::Linked {
+                x: 12.5,
+                z: -3.25,
+                c: 700_000.123_4,
+                minutes: 0.001,
+            }],
+        };
+        let segs = segments(&program).unwrap();
+        assert_eq!(
+            segs[0],
+            Segment::Linked {
+                x: 125_000,
+                z: -32_500,
+                c: 7_000_001_234,
+                duration_us: 60_000
+            }
+        );
+        let slot = segs[0].encode(1, WordOrder::HighFirst);
+        assert_eq!(&slot[8..12], &[0x0000, 0x0001, 0xA13B, 0x8AD2]);
+        let slot = segs[0].encode(1, WordOrder::LowFirst);
+        assert_eq!(&slot[8..12], &[0x8AD2, 0xA13B, 0x0001, 0x0000]);
+        // And the negative turn, two's complement: each word inverted, plus one at the
+        // bottom (!0x8AD2 + 1 = 0x752E, !0xA13B = 0x5EC4, !0x0001 = 0xFFFE).
+        assert_eq!(
+            WordOrder::HighFirst.i64_words(-7_000_001_234),
+            [0xFFFF, 0xFFFE, 0x5EC4, 0x752E]
+        );
+    }
+
+    #[test]
+    fn a_linked_slot_by_hand() {
+        // Sequence 0x00012345, a linked move to X 12.5 mm, Z −3.25 mm, C 90°, 60 ms, high
+        // word first. By the layout: SEQ 0x0001 0x2345; KIND 0x0701 (kind 1, flags X Z C);
+        // 0; X 125 000 = 0x0001E848; Z −32 500 = 0xFFFF810C; C 900 000 = 0x000DBBA0 in
+        // four words; PARAM 60 000 = 0x0000EA60; 0; CRC.
+        let segment = Segment::Linked {
+            x: 125_000,
+            z: -32_500,
+            c: 900_000,
+            duration_us: 60_000,
+        };
+        let slot = segment.encode(0x0001_2345, WordOrder::HighFirst);
+        let body = [
+            0x0001, 0x2345, 0x0701, 0, 0x0001, 0xE848, 0xFFFF, 0x810C, 0, 0, 0x000D, 0xBBA0,
+            0x0000, 0xEA60, 0,
+        ];
+        assert_eq!(&slot[..15], &body);
+        let bytes: Vec<u8> = body.iter().flat_map(|r: &u16| r.to_be_bytes()).collect();
+        assert_eq!(slot[15], crc16(&bytes));
+    }
+
+    #[test]
+    fn other_kinds_by_hand() {
+        let order = WordOrder::HighFirst;
+        // A rapid of Z alone: kind 2, flag Z (0x0200); X and C stay 0.
+        let slot = Segment::Rapid {
+            x: None,
+            z: Some(10_000),
+            c: None,
+        }
+        .encode(7, order);
+        assert_eq!(&slot[..8], &[0, 7, 0x0202, 0, 0, 0, 0, 10_000]);
+        // A feed of X at 50 mm/min = 50 000 thousandths.
+        let slot = Segment::Feed {
+            x: Some(-5),
+            z: None,
+            c: None,
+            feed: 50_000,
+        }
+        .encode(8, order);
+        assert_eq!(&slot[2..6], &[0x0103, 0, 0xFFFF, 0xFFFB]);
+        assert_eq!(&slot[12..14], &[0, 50_000]);
+        let param = |s: Segment| {
+            let slot = s.encode(1, order);
+            (slot[2], order.u32_from([slot[12], slot[13]]))
+        };
+        assert_eq!(
+            param(Segment::Dwell {
+                duration_us: 1_500_000
+            }),
+            (4, 1_500_000)
+        );
+        assert_eq!(param(Segment::SpindleOn { rpm: 2_500_500 }), (5, 2_500_500));
+        assert_eq!(param(Segment::SpindleOff), (6, 0));
+        assert_eq!(param(Segment::ProgramEnd), (7, 0));
+    }
+
+    #[test]
+    fn a_program_becomes_segments_in_order() {
+        let program = Program {
+            blocks: vec![
+                Block::Comment("groove".into()),
+                Block::Rapid {
+                    x: Some(30.0),
+                    z: None,
+                    c: Some(0.0),
+                },
+                Block::SpindleOn { rpm: 2500.5 },
+                Block::Feed {
+                    x: Some(24.0001),
+                    z: None,
+                    c: None,
+                    feed: 100.0,
+                },
+                Block::Linked {
+                    x: 24.0,
+                    z: 0.5,
+                    c: 360.0,
+                    minutes: 0.5 / 60.0,
+                },
+                Block::SpindleOff,
+            ],
+        };
+        assert_eq!(
+            segments(&program).unwrap(),
+            vec![
+                Segment::Rapid {
+                    x: Some(300_000),
+                    z: None,
+                    c: Some(0)
+                },
+                Segment::SpindleOn { rpm: 2_500_500 },
+                Segment::Feed {
+                    x: Some(240_001),
+                    z: None,
+                    c: None,
+                    feed: 100_000
+                },
+                Segment::Linked {
+                    x: 240_000,
+                    z: 5_000,
+                    c: 3_600_000,
+                    duration_us: 500_000
+                },
+                Segment::SpindleOff,
+                Segment::ProgramEnd,
+            ]
+        );
+    }
+
+    #[test]
+    fn blocks_the_map_cannot_carry_are_named() {
+        let refused = |block: Block| {
+            let program = Program {
+                blocks: vec![Block::Comment("x".into()), block],
+            };
+            match segments(&program) {
+                Err(MapError::Block { index, block, .. }) => (index, block),
+                other => panic!("expected a refusal, got {other:?}"),
+            }
+        };
+        assert_eq!(refused(Block::RebaseC { c: 30.0 }), (1, "G92 C30".into()));
+        assert_eq!(refused(Block::ClearRebase), (1, "G92.1".into()));
+        let linked = |x: f64, c: f64, minutes: f64| Block::Linked {
+            x,
+            z: 0.0,
+            c,
+            minutes,
+        };
+        assert_eq!(refused(linked(f64::NAN, 0.0, 1.0)).1, "G93 G1");
+        // i32 of 0.1 µm ends at 214 748.3647 mm.
+        assert_eq!(refused(linked(214_748.4, 0.0, 1.0)).0, 1);
+        assert_eq!(refused(linked(0.0, f64::INFINITY, 1.0)).0, 1);
+        assert_eq!(refused(linked(0.0, 1e16, 1.0)).0, 1);
+        // Half a µs rounds to zero; 72 min is beyond u32 µs (71.58 min).
+        assert_eq!(refused(linked(0.0, 0.0, 0.4e-6 / 60.0)).0, 1);
+        assert_eq!(refused(linked(0.0, 0.0, 72.0)).0, 1);
+        let rapid = Block::Rapid {
+            x: None,
+            z: Some(-1e9),
+            c: None,
+        };
+        assert_eq!(refused(rapid).1, "G0");
+        let rapid_c = Block::Rapid {
+            x: None,
+            z: None,
+            c: Some(f64::NAN),
+        };
+        assert_eq!(refused(rapid_c).1, "G0");
+        let feed = |x: f64, feed: f64| Block::Feed {
+            x: Some(x),
+            z: None,
+            c: None,
+            feed,
+        };
+        assert_eq!(refused(feed(1.0, 0.0)).1, "G1");
+        assert_eq!(refused(feed(1.0, 5e6)).1, "G1");
+        assert_eq!(refused(feed(f64::NAN, 1.0)).1, "G1");
+        let feed_c = Block::Feed {
+            x: None,
+            z: None,
+            c: Some(1e300),
+            feed: 1.0,
+        };
+        assert_eq!(refused(feed_c).1, "G1");
+        assert_eq!(refused(Block::SpindleOn { rpm: -1.0 }).1, "M3");
+        // The message names the block.
+        let err = segments(&Program {
+            blocks: vec![Block::ClearRebase],
+        })
+        .unwrap_err();
+        assert!(err.to_string().starts_with("block 0 (G92.1): "), "{err}");
+    }
+
+    #[test]
+    fn sequence_numbers_skip_zero() {
+        assert_eq!(next_sequence(1), 2);
+        assert_eq!(next_sequence(u32::MAX), 1);
+    }
+
+    #[test]
+    fn rate_check_names_the_short_segment() {
+        let linked = |duration_us| Segment::Linked {
+            x: 0,
+            z: 0,
+            c: 0,
+            duration_us,
+        };
+        // 1000 segments/s: 1 ms each at least.
+        let segs = [Segment::SpindleOff, linked(1000), linked(999)];
+        assert_eq!(check_rate(&segs[..2], 1000), Ok(()));
+        assert_eq!(
+            check_rate(&segs, 1000),
+            Err(MapError::TooShort {
+                index: 2,
+                duration_us: 999,
+                rate: 1000,
+                min_us: 1000
+            })
+        );
+        // 3 segments/s: ⌈333 333.3⌉ µs.
+        assert!(matches!(
+            check_rate(&[linked(333_333)], 3),
+            Err(MapError::TooShort {
+                min_us: 333_334,
+                ..
+            })
+        ));
+    }
+
+    fn ident_registers() -> [u16; 8] {
+        [0x5748, 0x524C, 1, 32, 16, 0, 1000, 500]
+    }
+
+    #[test]
+    fn identification_decodes_and_is_checked() {
+        let ident = Identification::decode(&ident_registers()).unwrap();
+        assert_eq!(
+            ident,
+            Identification {
+                slots: 32,
+                word_order: WordOrder::HighFirst,
+                max_segment_rate: 1000,
+                watchdog_timeout: Duration::from_millis(500),
+            }
+        );
+        // "WHRL" in ASCII.
+        assert_eq!(MAGIC[0].to_be_bytes(), *b"WH");
+        assert_eq!(MAGIC[1].to_be_bytes(), *b"RL");
+        for (register, value) in [
+            (0, 0x4857),
+            (1, 0x4C52),
+            (2, 2),
+            (3, 1),
+            (3, 65),
+            (4, 8),
+            (5, 2),
+            (6, 0),
+            (7, 0),
+        ] {
+            let mut r = ident_registers();
+            r[register] = value;
+            assert!(
+                matches!(
+                    Identification::decode(&r),
+                    Err(MapError::Register { register: got, value: v, .. })
+                        if usize::from(got) == register && v == value
+                ),
+                "register {register} = {value}"
+            );
+        }
+        assert_eq!(
+            Identification::decode(&[0; 7]),
+            Err(MapError::Length {
+                what: "identification block",
+                expected: 8,
+                got: 7
+            })
+        );
+    }
+
+    #[test]
+    fn status_decodes_in_both_word_orders() {
+        // Alarm 2 at segment 70 000 (0x00011170) with error 15, TAIL 3, executed 65 537
+        // (0x00010001), X 12.5 mm, Z −0.0001 mm, C 700 000.1234°, CONTROL RUN, HEAD 5,
+        // WATCHDOG 9.
+        let high = [
+            3, 2, 0x0001, 0x1170, 15, 3, 0x0001, 0x0001, 0x0001, 0xE848, 0xFFFF, 0xFFFF, 0x0000,
+            0x0001, 0xA13B, 0x8AD2, 1, 5, 9,
+        ];
+        let low = [
+            3, 2, 0x1170, 0x0001, 15, 3, 0x0001, 0x0001, 0xE848, 0x0001, 0xFFFF, 0xFFFF, 0x8AD2,
+            0xA13B, 0x0001, 0x0000, 1, 5, 9,
+        ];
+        let expected = Status {
+            state: State::Alarm,
+            alarm: Some(AlarmReport {
+                code: AlarmCode::SoftLimit,
+                sequence: 70_000,
+                detail: 15,
+            }),
+            tail: 3,
+            executed: 65_537,
+            x: 125_000,
+            z: -1,
+            c: 7_000_001_234,
+            control: control::RUN,
+            head: 5,
+            watchdog: 9,
+        };
+        assert_eq!(Status::decode(&high, WordOrder::HighFirst), Ok(expected));
+        assert_eq!(Status::decode(&low, WordOrder::LowFirst), Ok(expected));
+        assert_eq!(expected.position(), [12.5, -0.0001, 700_000.123_4]);
+        let mut bad = high;
+        bad[0] = 5;
+        assert!(matches!(
+            Status::decode(&bad, WordOrder::HighFirst),
+            Err(MapError::Register {
+                register: 16,
+                value: 5,
+                ..
+            })
+        ));
+        assert!(matches!(
+            Status::decode(&high[..18], WordOrder::HighFirst),
+            Err(MapError::Length {
+                expected: 19,
+                got: 18,
+                ..
+            })
+        ));
+        // No alarm: state idle and code 0.
+        let mut none = high;
+        none[0] = 0;
+        none[1] = 0;
+        assert_eq!(
+            Status::decode(&none, WordOrder::HighFirst).unwrap().alarm,
+            None
+        );
+        // An alarm state without a code, or a code without the alarm state, is refused.
+        let mut no_code = high;
+        no_code[1] = 0;
+        let mut no_state = high;
+        no_state[0] = 1;
+        for r in [no_code, no_state] {
+            assert!(matches!(
+                Status::decode(&r, WordOrder::HighFirst),
+                Err(MapError::Register { register: 17, .. })
+            ));
+        }
+    }
+
+    #[test]
+    fn alarm_codes_round_trip_and_read() {
+        for code in [2, 3, 64, 101, 102, 103, 104, 105, 7] {
+            assert_eq!(AlarmCode::from_register(code).unwrap().code(), code);
+        }
+        assert_eq!(AlarmCode::from_register(0), None);
+        assert_eq!(AlarmCode::from_register(7), Some(AlarmCode::Other(7)));
+        let report = AlarmReport {
+            code: AlarmCode::Refused,
+            sequence: 12,
+            detail: 11,
+        };
+        assert_eq!(
+            report.to_string(),
+            "alarm 105 (segment refused by the controller) at segment 12, controller error 11"
+        );
+        let report = AlarmReport {
+            code: AlarmCode::Watchdog,
+            sequence: 0,
+            detail: 0,
+        };
+        assert_eq!(report.to_string(), "alarm 104 (watchdog)");
+        for (code, text) in [
+            (AlarmCode::SoftLimit, "target outside the travel"),
+            (AlarmCode::AbortCycle, "reset while moving"),
+            (AlarmCode::ProfileError, "profile error beyond Δ"),
+            (AlarmCode::SlotCrc, "slot CRC"),
+            (AlarmCode::Sequence, "sequence number out of order"),
+            (AlarmCode::Segment, "invalid segment"),
+            (AlarmCode::Other(7), "controller alarm"),
+        ] {
+            assert!(code.to_string().ends_with(&format!("({text})")));
+        }
+        for (value, state) in [
+            (0, State::Idle),
+            (1, State::Running),
+            (2, State::Held),
+            (3, State::Alarm),
+            (4, State::Done),
+        ] {
+            assert_eq!(State::from_register(value), Ok(state));
+        }
+    }
+}

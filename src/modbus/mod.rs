@@ -1,0 +1,1287 @@
+//! Modbus: the planned path streamed to a controller as segments through the ring of
+//! holding registers that `docs/modbus.md` defines, as sans-I/O values and a state
+//! machine. No socket, no serial port, no clock: a later transport (tokio-modbus over TCP
+//! or RTU) carries the [`Request`]s and brings back the answers.
+//!
+//! - [`map`]: the register map as values: addresses, control bits, alarm codes, the word
+//!   order of 32- and 64-bit values, [`map::Segment`]s from a planned
+//!   [`Program`](crate::gcode::program::Program) and their slots (sequence number, CRC),
+//!   the identification and status blocks decoded.
+//! - [`RingWriter`]: one program streamed through the ring: what to request next, what
+//!   the answers mean.
+//!
+//! The simulated controller's side (`whirl_sim::modbus`) is written apart from this one,
+//! from the same document, so that a misreading shared by both cannot pass; the two meet
+//! in `tests/integration/modbus_map.rs`.
+//!
+//! # The stream
+//!
+//! [`RingWriter::poll`] is told the time and gives the next request, or none while it
+//! waits; [`RingWriter::response`] takes the answer (or the exception),
+//! [`RingWriter::timeout`] says none came. One request is outstanding at a time, as on a
+//! Modbus RTU line. The writer reads the identification block, checks the controller is
+//! idle, flushes the ring (`ABORT`), fills it, sets `RUN`, keeps it full as `TAIL` moves,
+//! feeds the watchdog, sets `END` after the last segment and waits for the state to
+//! read done ([`WriterEvent::Done`]).
+//!
+//! **Back-pressure.** The writer writes a slot only while the ring has room by the last
+//! `TAIL` it read: (`HEAD` + 1) mod N ≠ `TAIL`. `TAIL` only moves forward between flushes,
+//! so a stale value can only under-state the room. While the ring is full it writes
+//! nothing but the watchdog and reads the status every poll interval.
+//!
+//! **Sequence numbers** are `first_sequence` plus the segment's index, wrapping past
+//! 4 294 967 295 to 1. A segment's slot is written, then published by the `HEAD` write;
+//! the writer moves on to the next segment only when that `HEAD` write is answered, so
+//! no number is skipped, and none is published twice.
+//!
+//! **Re-sending.** After a timeout the same request is sent again, unchanged, and every
+//! request is idempotent: the slot is not yet published when it is re-written (the
+//! controller does not look at it, and the same registers land again); `HEAD` is written
+//! as an absolute index, so a second copy publishes nothing more; the control word's
+//! commands are edges, so the same value twice is one command; the watchdog counts only
+//! changes. A re-sent slot write that the controller receives after it was published is
+//! accepted because it changes nothing. So a lost answer never repeats or skips a segment.
+//!
+//! **Alarms.** An alarm in the status ends the stream with [`WriterEvent::Alarm`]; so does
+//! an exception 04 (the controller refused a slot at the `HEAD` write), once the status
+//! read after it says which alarm. Other exceptions, malformed answers, repeated timeouts
+//! and a ring flushed under the stream end it with [`WriterEvent::Failed`].
+
+pub mod map;
+
+use std::collections::VecDeque;
+use std::fmt;
+use std::time::Duration;
+
+use thiserror::Error;
+
+use map::{
+    check_rate, control, reg, AlarmReport, Identification, MapError, Segment, State, Status,
+    SLOT_SIZE,
+};
+
+/// A request to the controller: function codes 03, 06 and 16, unit id [`map::UNIT_ID`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Request {
+    /// FC03, read holding registers.
+    ReadHolding {
+        /// First register.
+        address: u16,
+        /// How many.
+        count: u16,
+    },
+    /// FC06, write single register.
+    WriteSingle {
+        /// The register.
+        address: u16,
+        /// Its new value.
+        value: u16,
+    },
+    /// FC16, write multiple registers.
+    WriteMultiple {
+        /// First register.
+        address: u16,
+        /// The values, in address order.
+        values: Vec<u16>,
+    },
+}
+
+impl fmt::Display for Request {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Request::ReadHolding { address, count } => {
+                write!(f, "FC03 read {count} registers at {address}")
+            }
+            Request::WriteSingle { address, value } => {
+                write!(f, "FC06 write {value:#06x} to register {address}")
+            }
+            Request::WriteMultiple { address, values } => {
+                write!(f, "FC16 write {} registers at {address}", values.len())
+            }
+        }
+    }
+}
+
+/// A normal answer.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Response {
+    /// FC03: the registers read.
+    ReadHolding(Vec<u16>),
+    /// FC06: the request echoed.
+    WriteSingle {
+        /// The register.
+        address: u16,
+        /// The value written.
+        value: u16,
+    },
+    /// FC16: the first register and how many were written.
+    WriteMultiple {
+        /// First register.
+        address: u16,
+        /// How many.
+        count: u16,
+    },
+}
+
+/// An exception answer (the Modbus application protocol's exception codes the map uses).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Error)]
+pub enum Exception {
+    /// 01: the function code is not served.
+    #[error("exception 01 (illegal function)")]
+    IllegalFunction,
+    /// 02: a register of the request is not mapped or not writable.
+    #[error("exception 02 (illegal data address)")]
+    IllegalDataAddress,
+    /// 03: a quantity or a value the map does not allow.
+    #[error("exception 03 (illegal data value)")]
+    IllegalDataValue,
+    /// 04: the controller could not do it: a refused slot, or an alarm.
+    #[error("exception 04 (server device failure)")]
+    ServerDeviceFailure,
+    /// 06: not now; retry later.
+    #[error("exception 06 (server device busy)")]
+    ServerDeviceBusy,
+}
+
+/// How a [`RingWriter`] streams.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct WriterOptions {
+    /// The first segment's sequence number (not 0). After the flush the writer starts
+    /// with, the controller accepts any.
+    pub first_sequence: u32,
+    /// How often the status is read while streaming.
+    pub poll_interval: Duration,
+    /// How many times a request is re-sent after timeouts before the stream fails.
+    pub max_retries: u32,
+}
+
+impl Default for WriterOptions {
+    fn default() -> WriterOptions {
+        WriterOptions {
+            first_sequence: 1,
+            poll_interval: Duration::from_millis(50),
+            max_retries: 3,
+        }
+    }
+}
+
+/// Something that happened in the stream.
+#[derive(Debug, Clone, PartialEq)]
+pub enum WriterEvent {
+    /// The identification block was read and accepted.
+    Identified(Identification),
+    /// A segment was published: its slot written and `HEAD` moved past it.
+    Published {
+        /// Its sequence number.
+        sequence: u32,
+        /// The slot it went to.
+        slot: u16,
+    },
+    /// A status read.
+    Status(Status),
+    /// The controller is in alarm; the stream is over.
+    Alarm(AlarmReport),
+    /// Every segment executed; the stream is over.
+    Done,
+    /// The stream cannot go on.
+    Failed(WriterError),
+}
+
+/// Why a stream failed.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum WriterError {
+    /// The first sequence number was 0, which the map never uses.
+    #[error("the first sequence number must not be 0")]
+    ZeroSequence,
+    /// The identification or status block, or the program against the controller's
+    /// segment rate.
+    #[error(transparent)]
+    Map(#[from] MapError),
+    /// The controller was not idle or done when the stream began.
+    #[error("the controller is {:?}, not idle or done{}", .0.state, .0.alarm.map(|a| format!(" ({a})")).unwrap_or_default())]
+    NotReady(Status),
+    /// The controller answered with an exception.
+    #[error("{request}: {exception}")]
+    Exception {
+        /// What was asked.
+        request: Request,
+        /// The answer.
+        exception: Exception,
+    },
+    /// An answer that does not fit the request.
+    #[error("{request}: answered {response:?}")]
+    BadResponse {
+        /// What was asked.
+        request: Request,
+        /// The answer.
+        response: Response,
+    },
+    /// An answer or a timeout with no request outstanding (a caller's bug).
+    #[error("{0} with no request outstanding")]
+    Unexpected(&'static str),
+    /// No answer to a request sent `attempts` times.
+    #[error("{request}: no answer after {attempts} attempts")]
+    NoAnswer {
+        /// What was asked.
+        request: Request,
+        /// How often it was sent.
+        attempts: u32,
+    },
+    /// `HEAD` does not read what the writer wrote: someone flushed the ring.
+    #[error(
+        "the ring was flushed under the stream: HEAD reads {read}, the writer wrote {written}"
+    )]
+    RingReset {
+        /// What the writer wrote.
+        written: u16,
+        /// What it reads.
+        read: u16,
+    },
+}
+
+/// What a request is for, to read its answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Purpose {
+    Identify,
+    Inspect,
+    Status,
+    Control(u16),
+    Slot,
+    Head(u16),
+    Watchdog,
+}
+
+/// When the outstanding request goes (again).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Send {
+    /// Sent; waiting for its answer.
+    Sent,
+    /// At the next poll (after a timeout).
+    Again,
+    /// Not before this time (after exception 06).
+    NotBefore(Duration),
+}
+
+#[derive(Debug, Clone)]
+struct Outstanding {
+    request: Request,
+    purpose: Purpose,
+    attempts: u32,
+    send: Send,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    Identify,
+    Inspect,
+    ClearControl,
+    Abort,
+    Stream,
+    Finished,
+}
+
+/// One program streamed through the ring (see the module docs).
+#[derive(Debug, Clone)]
+pub struct RingWriter {
+    segments: Vec<Segment>,
+    options: WriterOptions,
+    phase: Phase,
+    ident: Option<Identification>,
+    outstanding: Option<Outstanding>,
+    now: Duration,
+    /// Segments published.
+    published: usize,
+    /// The next segment's slot is written, its `HEAD` write not yet answered.
+    staged: bool,
+    head: u16,
+    /// `TAIL` as last read.
+    tail: u16,
+    /// `RUN` written.
+    run: bool,
+    /// `END` written.
+    end: bool,
+    /// An exception 04 came; the next status read says why.
+    refused: Option<Request>,
+    next_status: Duration,
+    next_watchdog: Duration,
+    watchdog: u16,
+    events: VecDeque<WriterEvent>,
+}
+
+impl RingWriter {
+    /// A writer for `segments` (see [`map::segments`]), not started: the first
+    /// [`RingWriter::poll`] starts it.
+    pub fn new(segments: Vec<Segment>, options: WriterOptions) -> Result<RingWriter, WriterError> {
+        if options.first_sequence == 0 {
+            return Err(WriterError::ZeroSequence);
+        }
+        Ok(RingWriter {
+            segments,
+            options,
+            phase: Phase::Identify,
+            ident: None,
+            outstanding: None,
+            now: Duration::ZERO,
+            published: 0,
+            staged: false,
+            head: 0,
+            tail: 0,
+            run: false,
+            end: false,
+            refused: None,
+            next_status: Duration::ZERO,
+            next_watchdog: Duration::ZERO,
+            watchdog: 0,
+            events: VecDeque::new(),
+        })
+    }
+
+    /// The request to send now, if any. `now` is any monotonic time (the writer keeps its
+    /// status polls and watchdog writes apart by it).
+    pub fn poll(&mut self, now: Duration) -> Option<Request> {
+        self.now = now;
+        if self.phase == Phase::Finished {
+            return None;
+        }
+        if let Some(o) = &mut self.outstanding {
+            let due = match o.send {
+                Send::Sent => false,
+                Send::Again => true,
+                Send::NotBefore(t) => now >= t,
+            };
+            if !due {
+                return None;
+            }
+            o.send = Send::Sent;
+            return Some(o.request.clone());
+        }
+        let (request, purpose) = self.next_request(now)?;
+        self.outstanding = Some(Outstanding {
+            request: request.clone(),
+            purpose,
+            attempts: 1,
+            send: Send::Sent,
+        });
+        Some(request)
+    }
+
+    /// The answer to the outstanding request: its response or its exception.
+    pub fn response(&mut self, result: Result<Response, Exception>) {
+        if self.phase == Phase::Finished {
+            return;
+        }
+        let Some(mut o) = self.outstanding.take() else {
+            return self.fail(WriterError::Unexpected("a response"));
+        };
+        match result {
+            Ok(response) => self.answered(o, response),
+            Err(Exception::ServerDeviceBusy) => {
+                o.send = Send::NotBefore(self.now + self.options.poll_interval);
+                self.outstanding = Some(o);
+            }
+            Err(Exception::ServerDeviceFailure) if self.phase == Phase::Stream => {
+                // A refused slot (or an alarm): the status says which.
+                self.refused = Some(o.request);
+            }
+            Err(exception) => self.fail(WriterError::Exception {
+                request: o.request,
+                exception,
+            }),
+        }
+    }
+
+    /// No answer came to the outstanding request: it is sent again, unchanged, at the
+    /// next poll, up to [`WriterOptions::max_retries`] times.
+    pub fn timeout(&mut self) {
+        if self.phase == Phase::Finished {
+            return;
+        }
+        match &mut self.outstanding {
+            Some(o) if o.send == Send::Sent => {
+                if o.attempts > self.options.max_retries {
+                    let (request, attempts) = (o.request.clone(), o.attempts);
+                    self.fail(WriterError::NoAnswer { request, attempts });
+                } else {
+                    o.attempts += 1;
+                    o.send = Send::Again;
+                }
+            }
+            _ => self.fail(WriterError::Unexpected("a timeout")),
+        }
+    }
+
+    /// The next event, oldest first.
+    pub fn next_event(&mut self) -> Option<WriterEvent> {
+        self.events.pop_front()
+    }
+
+    /// The stream is over (done, alarm or failed); nothing more will be requested.
+    pub fn is_finished(&self) -> bool {
+        self.phase == Phase::Finished
+    }
+
+    /// Sequence number of the segment at `index`.
+    fn sequence(&self, index: usize) -> u32 {
+        let offset = u64::from(self.options.first_sequence) - 1 + index as u64;
+        (offset % u64::from(u32::MAX)) as u32 + 1
+    }
+
+    fn next_request(&mut self, now: Duration) -> Option<(Request, Purpose)> {
+        let read = |address, count| Request::ReadHolding { address, count };
+        match self.phase {
+            Phase::Identify => Some((read(reg::MAGIC, reg::IDENT_LEN), Purpose::Identify)),
+            Phase::Inspect => Some((read(reg::STATE, reg::STATUS_LEN), Purpose::Inspect)),
+            Phase::ClearControl => Some(control_write(0)),
+            Phase::Abort => Some(control_write(control::ABORT)),
+            Phase::Stream => self.stream_request(now),
+            Phase::Finished => None,
+        }
+    }
+
+    fn stream_request(&mut self, now: Duration) -> Option<(Request, Purpose)> {
+        let ident = self.ident?;
+        let slots = ident.slots;
+        let status = (
+            Request::ReadHolding {
+                address: reg::STATE,
+                count: reg::STATUS_LEN,
+            },
+            Purpose::Status,
+        );
+        if self.refused.is_some() {
+            return Some(status);
+        }
+        if self.staged {
+            let value = (self.head + 1) % slots;
+            return Some((
+                Request::WriteSingle {
+                    address: reg::HEAD,
+                    value,
+                },
+                Purpose::Head(value),
+            ));
+        }
+        let watchdog_interval = ident.watchdog_timeout / 4;
+        if self.run && !self.end && now >= self.next_watchdog {
+            self.watchdog = self.watchdog.wrapping_add(1);
+            self.next_watchdog = now + watchdog_interval;
+            return Some((
+                Request::WriteSingle {
+                    address: reg::WATCHDOG,
+                    value: self.watchdog,
+                },
+                Purpose::Watchdog,
+            ));
+        }
+        if self.run && now >= self.next_status {
+            self.next_status = now + self.options.poll_interval;
+            return Some(status);
+        }
+        let all = self.published == self.segments.len();
+        let full = (self.head + 1) % slots == self.tail;
+        if !all && !full {
+            let sequence = self.sequence(self.published);
+            let values = self.segments[self.published]
+                .encode(sequence, ident.word_order)
+                .to_vec();
+            return Some((
+                Request::WriteMultiple {
+                    address: reg::RING + SLOT_SIZE * self.head,
+                    values,
+                },
+                Purpose::Slot,
+            ));
+        }
+        if !self.run {
+            // The ring is filled as far as it goes: start.
+            self.next_status = now + self.options.poll_interval;
+            self.next_watchdog = now + watchdog_interval;
+            let end = if all { control::END } else { 0 };
+            return Some(control_write(control::RUN | end));
+        }
+        if all && !self.end {
+            return Some(control_write(control::RUN | control::END));
+        }
+        None
+    }
+
+    fn answered(&mut self, o: Outstanding, response: Response) {
+        let fits = match (&o.request, &response) {
+            (Request::ReadHolding { count, .. }, Response::ReadHolding(values)) => {
+                values.len() == usize::from(*count)
+            }
+            (
+                Request::WriteSingle { address, value },
+                Response::WriteSingle {
+                    address: a,
+                    value: v,
+                },
+            ) => a == address && v == value,
+            (
+                Request::WriteMultiple { address, values },
+                Response::WriteMultiple { address: a, count },
+            ) => a == address && usize::from(*count) == values.len(),
+            _ => false,
+        };
+        if !fits {
+            return self.fail(WriterError::BadResponse {
+                request: o.request,
+                response,
+            });
+        }
+        let registers = match response {
+            Response::ReadHolding(values) => values,
+            _ => Vec::new(),
+        };
+        match o.purpose {
+            Purpose::Identify => self.identified(&registers),
+            Purpose::Inspect => match self.decode_status(&registers) {
+                Some(status) if matches!(status.state, State::Idle | State::Done) => {
+                    self.events.push_back(WriterEvent::Status(status));
+                    self.phase = Phase::ClearControl;
+                }
+                Some(status) => self.fail(WriterError::NotReady(status)),
+                None => {}
+            },
+            Purpose::Status => {
+                if let Some(status) = self.decode_status(&registers) {
+                    self.on_status(status);
+                }
+            }
+            Purpose::Control(value) => match self.phase {
+                Phase::ClearControl => self.phase = Phase::Abort,
+                Phase::Abort => {
+                    // At rest, the flush is complete when the write is answered.
+                    self.head = 0;
+                    self.tail = 0;
+                    self.phase = Phase::Stream;
+                }
+                _ => {
+                    self.run |= value & control::RUN != 0;
+                    self.end |= value & control::END != 0;
+                }
+            },
+            Purpose::Slot => self.staged = true,
+            Purpose::Head(value) => {
+                self.events.push_back(WriterEvent::Published {
+                    sequence: self.sequence(self.published),
+                    slot: self.head,
+                });
+                self.head = value;
+                self.staged = false;
+                self.published += 1;
+            }
+            Purpose::Watchdog => {}
+        }
+    }
+
+    fn identified(&mut self, registers: &[u16]) {
+        let checked = Identification::decode(registers).and_then(|ident| {
+            check_rate(&self.segments, ident.max_segment_rate)?;
+            Ok(ident)
+        });
+        match checked {
+            Ok(ident) => {
+                self.ident = Some(ident);
+                self.events.push_back(WriterEvent::Identified(ident));
+                self.phase = Phase::Inspect;
+            }
+            Err(e) => self.fail(e.into()),
+        }
+    }
+
+    /// The status, or `None` after failing the stream on a block that does not decode.
+    fn decode_status(&mut self, registers: &[u16]) -> Option<Status> {
+        let order = self.ident.map(|i| i.word_order).unwrap_or_default();
+        match Status::decode(registers, order) {
+            Ok(status) => Some(status),
+            Err(e) => {
+                self.fail(e.into());
+                None
+            }
+        }
+    }
+
+    fn on_status(&mut self, status: Status) {
+        self.events.push_back(WriterEvent::Status(status));
+        if let Some(alarm) = status.alarm {
+            self.events.push_back(WriterEvent::Alarm(alarm));
+            self.phase = Phase::Finished;
+            return;
+        }
+        if let Some(request) = self.refused.take() {
+            return self.fail(WriterError::Exception {
+                request,
+                exception: Exception::ServerDeviceFailure,
+            });
+        }
+        if status.head != self.head {
+            return self.fail(WriterError::RingReset {
+                written: self.head,
+                read: status.head,
+            });
+        }
+        self.tail = status.tail;
+        if self.end && status.state == State::Done {
+            self.events.push_back(WriterEvent::Done);
+            self.phase = Phase::Finished;
+        }
+    }
+
+    fn fail(&mut self, error: WriterError) {
+        self.events.push_back(WriterEvent::Failed(error));
+        self.outstanding = None;
+        self.phase = Phase::Finished;
+    }
+}
+
+/// A write of the control word.
+fn control_write(value: u16) -> (Request, Purpose) {
+    (
+        Request::WriteSingle {
+            address: reg::CONTROL,
+            value,
+        },
+        Purpose::Control(value),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::map::{AlarmCode, WordOrder};
+    use super::*;
+
+    const MS: Duration = Duration::from_millis(1);
+
+    /// The controller's answers as `docs/modbus.md` states them, kept by hand: the
+    /// registers the writer reads, HEAD and TAIL, the control word's flush, and every
+    /// request in a log. TAIL moves only when a test says the controller took slots.
+    struct Fake {
+        slots: u16,
+        order: WordOrder,
+        rate: u16,
+        timeout_ms: u16,
+        state: u16,
+        alarm: u16,
+        alarm_seq: u32,
+        detail: u16,
+        tail: u16,
+        head: u16,
+        control: u16,
+        watchdog: u16,
+        ring: Vec<u16>,
+    }
+
+    impl Fake {
+        fn new(slots: u16) -> Fake {
+            Fake {
+                slots,
+                order: WordOrder::HighFirst,
+                rate: 1000,
+                timeout_ms: 400,
+                state: 0,
+                alarm: 0,
+                alarm_seq: 0,
+                detail: 0,
+                tail: 0,
+                head: 0,
+                control: 0,
+                watchdog: 0,
+                ring: vec![0; usize::from(slots) * 16],
+            }
+        }
+
+        fn answer(&mut self, request: &Request) -> Result<Response, Exception> {
+            match *request {
+                Request::ReadHolding {
+                    address: 0,
+                    count: 8,
+                } => Ok(Response::ReadHolding(vec![
+                    0x5748,
+                    0x524C,
+                    1,
+                    self.slots,
+                    16,
+                    self.order.register(),
+                    self.rate,
+                    self.timeout_ms,
+                ])),
+                Request::ReadHolding {
+                    address: 16,
+                    count: 19,
+                } => {
+                    let mut r = vec![self.state, self.alarm];
+                    r.extend(self.order.u32_words(self.alarm_seq));
+                    r.extend([self.detail, self.tail]);
+                    r.extend(self.order.u32_words(0));
+                    r.extend([0; 8]);
+                    r.extend([self.control, self.head, self.watchdog]);
+                    Ok(Response::ReadHolding(r))
+                }
+                Request::WriteSingle { address, value } => {
+                    match address {
+                        32 => {
+                            if value & !self.control & control::ABORT != 0 {
+                                self.head = 0;
+                                self.tail = 0;
+                            }
+                            self.control = value;
+                        }
+                        33 => self.head = value,
+                        34 => self.watchdog = value,
+                        _ => return Err(Exception::IllegalDataAddress),
+                    }
+                    Ok(Response::WriteSingle { address, value })
+                }
+                Request::WriteMultiple {
+                    address,
+                    ref values,
+                } if address >= 256 => {
+                    let at = usize::from(address - 256);
+                    self.ring[at..at + values.len()].copy_from_slice(values);
+                    Ok(Response::WriteMultiple {
+                        address,
+                        count: values.len() as u16,
+                    })
+                }
+                _ => Err(Exception::IllegalDataAddress),
+            }
+        }
+
+        /// The sequence number in slot `i`.
+        fn sequence_in(&self, i: u16) -> u32 {
+            let at = usize::from(i) * 16;
+            self.order.u32_from([self.ring[at], self.ring[at + 1]])
+        }
+    }
+
+    /// Sends and answers requests until the writer waits; returns them.
+    fn drive(writer: &mut RingWriter, fake: &mut Fake, now: Duration) -> Vec<Request> {
+        let mut sent = Vec::new();
+        while let Some(request) = writer.poll(now) {
+            let answer = fake.answer(&request);
+            writer.response(answer);
+            sent.push(request);
+        }
+        sent
+    }
+
+    fn events(writer: &mut RingWriter) -> Vec<WriterEvent> {
+        std::iter::from_fn(|| writer.next_event()).collect()
+    }
+
+    fn published(events: &[WriterEvent]) -> Vec<(u32, u16)> {
+        events
+            .iter()
+            .filter_map(|e| match *e {
+                WriterEvent::Published { sequence, slot } => Some((sequence, slot)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn linked(n: usize) -> Vec<Segment> {
+        (0..n)
+            .map(|i| Segment::Linked {
+                x: 100_000,
+                z: i as i32 * 1000,
+                c: i as i64 * 3_600_000,
+                duration_us: 10_000,
+            })
+            .collect()
+    }
+
+    fn read(address: u16, count: u16) -> Request {
+        Request::ReadHolding { address, count }
+    }
+
+    fn write(address: u16, value: u16) -> Request {
+        Request::WriteSingle { address, value }
+    }
+
+    fn writer(segments: Vec<Segment>) -> RingWriter {
+        RingWriter::new(segments, WriterOptions::default()).unwrap()
+    }
+
+    /// A writer streaming `n` linked segments into a fake of `slots`, started and filled.
+    fn started(n: usize, slots: u16) -> (RingWriter, Fake) {
+        let mut w = writer(linked(n));
+        let mut fake = Fake::new(slots);
+        drive(&mut w, &mut fake, Duration::ZERO);
+        (w, fake)
+    }
+
+    #[test]
+    fn identify_inspect_flush_fill_then_run() {
+        let mut w = writer(linked(5));
+        let mut fake = Fake::new(4);
+        // Leftovers of an earlier stream, which the flush clears.
+        (fake.head, fake.tail, fake.control) = (2, 1, control::RUN | control::END);
+        let sent = drive(&mut w, &mut fake, Duration::ZERO);
+        let kinds: Vec<Request> = sent
+            .iter()
+            .map(|r| match r {
+                Request::WriteMultiple { address, .. } => read(*address, 0),
+                other => other.clone(),
+            })
+            .collect();
+        // Doc, "The bridge's stream": identification, status, CONTROL 0 then ABORT (16),
+        // slots 0, 1, 2 each followed by its HEAD write, and the ring of 4 is full
+        // (HEAD 3 + 1 = TAIL 0 mod 4): RUN (1) and wait.
+        assert_eq!(
+            kinds,
+            vec![
+                read(0, 8),
+                read(16, 19),
+                write(32, 0),
+                write(32, 16),
+                read(256, 0),
+                write(33, 1),
+                read(272, 0),
+                write(33, 2),
+                read(288, 0),
+                write(33, 3),
+                write(32, 1),
+            ]
+        );
+        for (slot, sequence) in [(0, 1), (1, 2), (2, 3)] {
+            assert_eq!(fake.sequence_in(slot), sequence);
+            let at = usize::from(slot) * 16;
+            assert_eq!(fake.ring[at + 15], map::slot_crc(&fake.ring[at..at + 15]));
+        }
+        let ev = events(&mut w);
+        assert!(matches!(ev[0], WriterEvent::Identified(i) if i.slots == 4));
+        assert!(matches!(ev[1], WriterEvent::Status(_)));
+        assert_eq!(published(&ev), vec![(1, 0), (2, 1), (3, 2)]);
+        assert!(!w.is_finished());
+    }
+
+    #[test]
+    fn a_full_ring_holds_the_writer_back_and_wraps() {
+        let (mut w, mut fake) = started(5, 4);
+        events(&mut w);
+        // 50 ms: the status poll; TAIL has not moved, so nothing is written.
+        assert_eq!(drive(&mut w, &mut fake, 50 * MS), vec![read(16, 19)]);
+        assert_eq!(drive(&mut w, &mut fake, 60 * MS), vec![]);
+        // The controller takes two slots. At 100 ms the watchdog (a quarter of 400 ms) and
+        // the status; then slot 3 and slot 0 (wrapping), and END with the last.
+        fake.tail = 2;
+        let sent = drive(&mut w, &mut fake, 100 * MS);
+        let addresses: Vec<(u16, Option<u16>)> = sent
+            .iter()
+            .map(|r| match *r {
+                Request::ReadHolding { address, .. } => (address, None),
+                Request::WriteSingle { address, value } => (address, Some(value)),
+                Request::WriteMultiple { address, .. } => (address, None),
+            })
+            .collect();
+        assert_eq!(
+            addresses,
+            vec![
+                (34, Some(1)),
+                (16, None),
+                (256 + 48, None),
+                (33, Some(0)),
+                (256, None),
+                (33, Some(1)),
+                (32, Some(control::RUN | control::END)),
+            ]
+        );
+        assert_eq!(published(&events(&mut w)), vec![(4, 3), (5, 0)]);
+        // With END written the watchdog is no longer fed; the status is polled until done.
+        assert_eq!(drive(&mut w, &mut fake, 200 * MS), vec![read(16, 19)]);
+        (fake.tail, fake.state) = (1, 4);
+        assert_eq!(drive(&mut w, &mut fake, 250 * MS), vec![read(16, 19)]);
+        let ev = events(&mut w);
+        assert_eq!(ev.last(), Some(&WriterEvent::Done));
+        assert!(w.is_finished());
+        assert_eq!(w.poll(300 * MS), None);
+    }
+
+    #[test]
+    fn everything_fits_runs_with_end_at_once() {
+        let (mut w, mut fake) = started(2, 8);
+        assert_eq!(fake.control, control::RUN | control::END);
+        fake.state = 4;
+        fake.tail = 2;
+        drive(&mut w, &mut fake, 50 * MS);
+        assert_eq!(events(&mut w).last(), Some(&WriterEvent::Done));
+    }
+
+    #[test]
+    fn the_watchdog_counts_up_every_quarter_timeout() {
+        let (mut w, mut fake) = started(10, 2);
+        let mut values = Vec::new();
+        for t in (10..=350).step_by(10) {
+            for r in drive(&mut w, &mut fake, t * MS) {
+                if let Request::WriteSingle { address: 34, value } = r {
+                    values.push((t, value));
+                }
+            }
+        }
+        assert_eq!(values, vec![(100, 1), (200, 2), (300, 3)]);
+    }
+
+    #[test]
+    fn a_timed_out_write_is_sent_again_unchanged() {
+        let mut w = writer(linked(2));
+        let mut fake = Fake::new(4);
+        // Through the flush.
+        for _ in 0..4 {
+            let r = w.poll(Duration::ZERO).unwrap();
+            w.response(fake.answer(&r));
+        }
+        // The slot write lands but its answer is lost; the copy lands again.
+        let slot = w.poll(Duration::ZERO).unwrap();
+        fake.answer(&slot).unwrap();
+        assert_eq!(w.poll(Duration::ZERO), None, "one request at a time");
+        w.timeout();
+        assert_eq!(w.poll(Duration::ZERO), Some(slot.clone()));
+        w.response(fake.answer(&slot));
+        // The HEAD write lands, its answer is lost, the copy publishes nothing more.
+        let head = w.poll(Duration::ZERO).unwrap();
+        assert_eq!(head, write(33, 1));
+        fake.answer(&head).unwrap();
+        w.timeout();
+        assert_eq!(w.poll(Duration::ZERO), Some(head.clone()));
+        w.response(fake.answer(&head));
+        // The next slot carries the next number: nothing repeated, nothing skipped.
+        drive(&mut w, &mut fake, Duration::ZERO);
+        assert_eq!(published(&events(&mut w)), vec![(1, 0), (2, 1)]);
+        assert_eq!((fake.sequence_in(0), fake.sequence_in(1)), (1, 2));
+    }
+
+    #[test]
+    fn no_answer_after_the_retries_fails() {
+        let mut w = writer(linked(1));
+        let first = w.poll(Duration::ZERO).unwrap();
+        // Sent once and re-sent three times (max_retries), then given up.
+        for _ in 0..3 {
+            w.timeout();
+            assert_eq!(w.poll(Duration::ZERO), Some(first.clone()));
+        }
+        w.timeout();
+        assert!(w.is_finished());
+        assert_eq!(
+            events(&mut w),
+            vec![WriterEvent::Failed(WriterError::NoAnswer {
+                request: first,
+                attempts: 4
+            })]
+        );
+    }
+
+    #[test]
+    fn busy_is_retried_after_the_poll_interval() {
+        let mut w = writer(linked(1));
+        let mut fake = Fake::new(4);
+        for _ in 0..4 {
+            let r = w.poll(Duration::ZERO).unwrap();
+            w.response(fake.answer(&r));
+        }
+        let slot = w.poll(10 * MS).unwrap();
+        w.response(Err(Exception::ServerDeviceBusy));
+        assert_eq!(w.poll(59 * MS), None);
+        assert_eq!(w.poll(60 * MS), Some(slot));
+        assert!(!w.is_finished());
+    }
+
+    #[test]
+    fn a_refused_slot_ends_with_its_alarm() {
+        let mut w = writer(linked(1));
+        let mut fake = Fake::new(4);
+        for _ in 0..5 {
+            let r = w.poll(Duration::ZERO).unwrap();
+            w.response(fake.answer(&r));
+        }
+        // The HEAD write is refused (04): the controller raised alarm 101 at sequence 1.
+        assert_eq!(w.poll(Duration::ZERO), Some(write(33, 1)));
+        w.response(Err(Exception::ServerDeviceFailure));
+        (fake.state, fake.alarm, fake.alarm_seq) = (3, 101, 1);
+        assert_eq!(drive(&mut w, &mut fake, Duration::ZERO), vec![read(16, 19)]);
+        let ev = events(&mut w);
+        assert_eq!(
+            ev.last(),
+            Some(&WriterEvent::Alarm(AlarmReport {
+                code: AlarmCode::SlotCrc,
+                sequence: 1,
+                detail: 0
+            }))
+        );
+        assert!(published(&ev).is_empty());
+        assert!(w.is_finished());
+    }
+
+    #[test]
+    fn a_failure_without_an_alarm_is_an_error() {
+        let mut w = writer(linked(1));
+        let mut fake = Fake::new(4);
+        for _ in 0..5 {
+            let r = w.poll(Duration::ZERO).unwrap();
+            w.response(fake.answer(&r));
+        }
+        w.poll(Duration::ZERO);
+        w.response(Err(Exception::ServerDeviceFailure));
+        drive(&mut w, &mut fake, Duration::ZERO);
+        assert_eq!(
+            events(&mut w).last(),
+            Some(&WriterEvent::Failed(WriterError::Exception {
+                request: write(33, 1),
+                exception: Exception::ServerDeviceFailure
+            }))
+        );
+        // Before streaming, 04 is an error at once.
+        let mut w = writer(linked(1));
+        w.poll(Duration::ZERO);
+        w.response(Err(Exception::ServerDeviceFailure));
+        assert!(matches!(
+            events(&mut w)[..],
+            [WriterEvent::Failed(WriterError::Exception {
+                exception: Exception::ServerDeviceFailure,
+                ..
+            })]
+        ));
+    }
+
+    #[test]
+    fn an_alarm_in_the_status_ends_the_stream() {
+        let (mut w, mut fake) = started(10, 4);
+        (fake.state, fake.alarm, fake.alarm_seq, fake.detail) = (3, 2, 3, 15);
+        drive(&mut w, &mut fake, 50 * MS);
+        let ev = events(&mut w);
+        assert_eq!(
+            ev.last(),
+            Some(&WriterEvent::Alarm(AlarmReport {
+                code: AlarmCode::SoftLimit,
+                sequence: 3,
+                detail: 15
+            }))
+        );
+        assert!(w.is_finished());
+        // Answers and timeouts after the end are ignored.
+        w.response(Ok(Response::ReadHolding(vec![])));
+        w.timeout();
+        assert_eq!(w.next_event(), None);
+    }
+
+    #[test]
+    fn sequence_numbers_wrap_past_u32_max() {
+        let options = WriterOptions {
+            first_sequence: u32::MAX,
+            ..WriterOptions::default()
+        };
+        let mut w = RingWriter::new(linked(3), options).unwrap();
+        let mut fake = Fake::new(8);
+        drive(&mut w, &mut fake, Duration::ZERO);
+        assert_eq!(
+            published(&events(&mut w)),
+            vec![(u32::MAX, 0), (1, 1), (2, 2)]
+        );
+        assert_eq!(&fake.ring[0..2], &[0xFFFF, 0xFFFF]);
+        assert_eq!(&fake.ring[16..18], &[0, 1]);
+        assert_eq!(
+            RingWriter::new(
+                linked(1),
+                WriterOptions {
+                    first_sequence: 0,
+                    ..WriterOptions::default()
+                }
+            )
+            .unwrap_err(),
+            WriterError::ZeroSequence
+        );
+    }
+
+    #[test]
+    fn low_word_first_controllers_get_low_word_first_slots() {
+        let mut w = writer(linked(2));
+        let mut fake = Fake::new(4);
+        fake.order = WordOrder::LowFirst;
+        drive(&mut w, &mut fake, Duration::ZERO);
+        // Sequence 2 low word first: 0x0002 then 0x0000.
+        assert_eq!(&fake.ring[16..18], &[2, 0]);
+        fake.tail = 2;
+        fake.state = 4;
+        drive(&mut w, &mut fake, 50 * MS);
+        assert_eq!(events(&mut w).last(), Some(&WriterEvent::Done));
+    }
+
+    #[test]
+    fn refusals_before_streaming() {
+        let first_event = |fake: &mut Fake, segments: Vec<Segment>| {
+            let mut w = writer(segments);
+            drive(&mut w, fake, Duration::ZERO);
+            assert!(w.is_finished());
+            events(&mut w)
+                .into_iter()
+                .find(|e| matches!(e, WriterEvent::Failed(_)))
+                .unwrap()
+        };
+        // Not idle: running.
+        let mut fake = Fake::new(4);
+        fake.state = 1;
+        assert!(matches!(
+            first_event(&mut fake, linked(1)),
+            WriterEvent::Failed(WriterError::NotReady(Status {
+                state: State::Running,
+                ..
+            }))
+        ));
+        // In alarm from before.
+        let mut fake = Fake::new(4);
+        (fake.state, fake.alarm) = (3, 104);
+        let WriterEvent::Failed(e) = first_event(&mut fake, linked(1)) else {
+            unreachable!()
+        };
+        assert_eq!(
+            e.to_string(),
+            "the controller is Alarm, not idle or done (alarm 104 (watchdog))"
+        );
+        // Not a whirl map.
+        let mut fake = Fake::new(1);
+        assert!(matches!(
+            first_event(&mut fake, linked(1)),
+            WriterEvent::Failed(WriterError::Map(MapError::Register { register: 3, .. }))
+        ));
+        // 10 ms segments on a controller of at most 50 segments/s (20 ms).
+        let mut fake = Fake::new(4);
+        fake.rate = 50;
+        assert!(matches!(
+            first_event(&mut fake, linked(1)),
+            WriterEvent::Failed(WriterError::Map(MapError::TooShort { min_us: 20_000, .. }))
+        ));
+    }
+
+    #[test]
+    fn malformed_answers_fail_the_stream() {
+        let failed = |answers: &dyn Fn(&Request) -> Option<Result<Response, Exception>>| {
+            let mut w = writer(linked(1));
+            let mut fake = Fake::new(4);
+            while let Some(r) = w.poll(Duration::ZERO) {
+                let answer = answers(&r).unwrap_or_else(|| fake.answer(&r));
+                w.response(answer);
+            }
+            match events(&mut w).pop() {
+                Some(WriterEvent::Failed(e)) => e,
+                other => panic!("expected a failure, got {other:?}"),
+            }
+        };
+        // A read answered with the wrong number of registers.
+        let e = failed(&|r| (*r == read(0, 8)).then(|| Ok(Response::ReadHolding(vec![0x5748]))));
+        assert!(matches!(e, WriterError::BadResponse { .. }));
+        // A write echoed with another value.
+        let e = failed(&|r| {
+            (*r == write(32, 16)).then_some(Ok(Response::WriteSingle {
+                address: 32,
+                value: 0,
+            }))
+        });
+        assert!(matches!(e, WriterError::BadResponse { .. }));
+        // A slot write answered as a read.
+        let e = failed(&|r| {
+            matches!(r, Request::WriteMultiple { .. }).then(|| Ok(Response::ReadHolding(vec![])))
+        });
+        assert!(matches!(e, WriterError::BadResponse { .. }));
+        // A slot write acknowledged at another address.
+        let e = failed(&|r| {
+            matches!(r, Request::WriteMultiple { .. }).then_some(Ok(Response::WriteMultiple {
+                address: 0,
+                count: 16,
+            }))
+        });
+        assert!(matches!(e, WriterError::BadResponse { .. }));
+        // Exceptions other than 04 and 06.
+        let e = failed(&|r| (*r == write(33, 1)).then_some(Err(Exception::IllegalDataValue)));
+        assert_eq!(
+            e,
+            WriterError::Exception {
+                request: write(33, 1),
+                exception: Exception::IllegalDataValue
+            }
+        );
+        assert_eq!(
+            e.to_string(),
+            "FC06 write 0x0001 to register 33: exception 03 (illegal data value)"
+        );
+        let e = failed(&|r| (*r == read(0, 8)).then_some(Err(Exception::IllegalFunction)));
+        assert!(
+            e.to_string().ends_with("exception 01 (illegal function)"),
+            "{e}"
+        );
+        let e = failed(&|r| {
+            matches!(r, Request::WriteMultiple { .. }).then_some(Err(Exception::IllegalDataAddress))
+        });
+        assert_eq!(
+            e.to_string(),
+            "FC16 write 16 registers at 256: exception 02 (illegal data address)"
+        );
+        // A status block that does not decode (state 9).
+        let e = failed(&|r| {
+            (*r == read(16, 19)).then(|| {
+                let mut regs = vec![0; 19];
+                regs[0] = 9;
+                Ok(Response::ReadHolding(regs))
+            })
+        });
+        assert!(matches!(
+            e,
+            WriterError::Map(MapError::Register { register: 16, .. })
+        ));
+        assert_eq!(
+            Exception::ServerDeviceBusy.to_string(),
+            "exception 06 (server device busy)"
+        );
+        assert_eq!(read(16, 19).to_string(), "FC03 read 19 registers at 16");
+    }
+
+    #[test]
+    fn a_caller_out_of_step_fails_the_stream() {
+        let mut w = writer(linked(1));
+        w.response(Ok(Response::ReadHolding(vec![])));
+        assert_eq!(
+            events(&mut w),
+            vec![WriterEvent::Failed(WriterError::Unexpected("a response"))]
+        );
+        let mut w = writer(linked(1));
+        w.timeout();
+        let e = WriterError::Unexpected("a timeout");
+        assert_eq!(e.to_string(), "a timeout with no request outstanding");
+        assert_eq!(events(&mut w), vec![WriterEvent::Failed(e)]);
+    }
+
+    #[test]
+    fn a_ring_flushed_under_the_stream_is_noticed() {
+        let (mut w, mut fake) = started(10, 4);
+        // Someone else aborted: HEAD and TAIL read 0 where the writer wrote 3.
+        (fake.head, fake.tail) = (0, 0);
+        drive(&mut w, &mut fake, 50 * MS);
+        assert_eq!(
+            events(&mut w).last(),
+            Some(&WriterEvent::Failed(WriterError::RingReset {
+                written: 3,
+                read: 0
+            }))
+        );
+    }
+
+    #[test]
+    fn a_program_streams_from_its_blocks() {
+        // segments() and the writer together: the program's blocks, then M2.
+        use crate::gcode::program::{Block, Program};
+        let program = Program {
+            blocks: vec![Block::SpindleOn { rpm: 1000.0 }, Block::SpindleOff],
+        };
+        let mut w = writer(map::segments(&program).unwrap());
+        let mut fake = Fake::new(8);
+        drive(&mut w, &mut fake, Duration::ZERO);
+        let kinds: Vec<u16> = (0..3).map(|i| fake.ring[i * 16 + 2]).collect();
+        assert_eq!(
+            kinds,
+            vec![
+                map::kind::SPINDLE_ON,
+                map::kind::SPINDLE_OFF,
+                map::kind::PROGRAM_END
+            ]
+        );
+    }
+}

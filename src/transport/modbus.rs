@@ -1,0 +1,382 @@
+//! A planned program streamed to a Modbus controller (`docs/modbus.md`): the sans-I/O
+//! [`RingWriter`] driven over tokio-modbus, Modbus TCP or RTU.
+//!
+//! tokio-modbus's client has no timeout of its own, so every call gets one. After a timeout
+//! (or a broken connection) the context is dropped and a new connection made, with a
+//! backoff: a late answer on the old connection would otherwise be read as the answer to the
+//! next request. The writer then re-sends the same request, which the map makes idempotent,
+//! so a lost answer neither repeats nor skips a segment. Exception answers go to the writer,
+//! which names them; a full ring is the writer's back-pressure (it waits on `TAIL`).
+//!
+//! The writer's clock is the wall clock times [`ModbusOptions::clock_scale`]: 1 for a
+//! machine, the simulator's time scale in a dry run, so that status polls and watchdog
+//! writes keep their meaning in the controller's time.
+
+use crate::exec_log::{self, ExecLog, LogError};
+use crate::modbus::map::{Segment, UNIT_ID};
+use crate::modbus::{
+    Exception, Request, Response, RingWriter, WriterError, WriterEvent, WriterOptions,
+};
+use std::net::SocketAddr;
+use std::time::Duration;
+use thiserror::Error;
+use tokio::time::Instant;
+use tokio_modbus::client::{Context, Reader, Writer};
+use tokio_modbus::{ExceptionCode, Slave};
+use tokio_serial::SerialPortBuilderExt;
+
+/// Where the controller is.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ModbusLink {
+    /// Modbus TCP.
+    Tcp(SocketAddr),
+    /// Modbus RTU on a serial line (8N1).
+    Rtu {
+        /// The port (a device or a pseudo-terminal).
+        path: String,
+        /// Baud rate.
+        baud: u32,
+    },
+}
+
+impl ModbusLink {
+    /// `modbus-tcp` or `modbus-rtu`, as the log and the CLI name transports.
+    pub fn transport(&self) -> &'static str {
+        match self {
+            ModbusLink::Tcp(_) => "modbus-tcp",
+            ModbusLink::Rtu { .. } => "modbus-rtu",
+        }
+    }
+}
+
+impl std::fmt::Display for ModbusLink {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ModbusLink::Tcp(addr) => write!(f, "Modbus TCP {addr}"),
+            ModbusLink::Rtu { path, baud } => write!(f, "Modbus RTU {path} at {baud} baud"),
+        }
+    }
+}
+
+/// How a program is streamed over Modbus.
+#[derive(Debug, Clone)]
+pub struct ModbusOptions {
+    /// The ring writer's settings (first sequence number, poll interval, retries).
+    pub writer: WriterOptions,
+    /// Longest wait for one answer, wall time.
+    pub timeout: Duration,
+    /// First wait before reconnecting; it doubles up to [`ModbusOptions::max_backoff`].
+    pub backoff: Duration,
+    /// Longest wait before reconnecting.
+    pub max_backoff: Duration,
+    /// Connection attempts in a row before giving up.
+    pub max_reconnects: u32,
+    /// The writer's clock in wall seconds per second (see the module docs).
+    pub clock_scale: f64,
+    /// What is streamed, for the log.
+    pub program: String,
+}
+
+impl Default for ModbusOptions {
+    fn default() -> ModbusOptions {
+        ModbusOptions {
+            writer: WriterOptions::default(),
+            timeout: Duration::from_millis(500),
+            backoff: Duration::from_millis(50),
+            max_backoff: Duration::from_secs(2),
+            max_reconnects: 8,
+            clock_scale: 1.0,
+            program: String::new(),
+        }
+    }
+}
+
+/// What a stream did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModbusOutcome {
+    /// Every segment executed and the controller reads done.
+    pub completed: bool,
+    /// Segments in the program.
+    pub segments: usize,
+    /// Segments published to the ring.
+    pub published: usize,
+    /// The controller's alarm, if that ended the stream.
+    pub alarm: Option<crate::modbus::map::AlarmReport>,
+    /// Why the stream could not go on, if it could not.
+    pub failure: Option<WriterError>,
+    /// Calls that got no answer in time.
+    pub timeouts: u32,
+    /// New connections made after the first.
+    pub reconnects: u32,
+    /// From the first request to the end.
+    pub wall_time: Duration,
+}
+
+/// Why a stream could not be carried out (an alarm or a writer failure is an outcome).
+#[derive(Debug, Error)]
+pub enum ModbusError {
+    /// The controller could not be reached, `attempts` times in a row.
+    #[error("cannot reach {link} ({attempts} attempts): {source}")]
+    Connect {
+        /// Where.
+        link: String,
+        /// How often it was tried.
+        attempts: u32,
+        /// The last failure.
+        source: std::io::Error,
+    },
+    /// The program cannot be streamed (a segment rate or a first sequence the map refuses).
+    #[error(transparent)]
+    Writer(#[from] WriterError),
+    /// An exception code the map never uses.
+    #[error("{request}: exception code {code:#04x}, which docs/modbus.md does not use")]
+    UnknownException {
+        /// What was asked.
+        request: Request,
+        /// The code.
+        code: u8,
+    },
+    /// The executed-path log.
+    #[error("executed-path log: {0}")]
+    Log(#[from] LogError),
+}
+
+/// Streams `segments` to the controller at `link`, logging to `log`.
+pub async fn stream_modbus(
+    link: &ModbusLink,
+    segments: Vec<Segment>,
+    options: ModbusOptions,
+    log: &mut ExecLog,
+) -> Result<ModbusOutcome, ModbusError> {
+    let total = segments.len();
+    let mut writer = RingWriter::new(segments, options.writer.clone())?;
+    let start = Instant::now();
+    let t = |start: Instant| start.elapsed().as_secs_f64();
+    log.write(
+        0.0,
+        exec_log::Event::Start {
+            program: options.program.clone(),
+            lines: total,
+            transport: link.transport().to_owned(),
+        },
+    )?;
+    let mut ctx = connect(link, &options).await?;
+    let mut outcome = ModbusOutcome {
+        completed: false,
+        segments: total,
+        published: 0,
+        alarm: None,
+        failure: None,
+        timeouts: 0,
+        reconnects: 0,
+        wall_time: Duration::ZERO,
+    };
+    let mut finished = false;
+    while !finished {
+        let now = start.elapsed().mul_f64(options.clock_scale);
+        match writer.poll(now) {
+            Some(request) => {
+                let answer = tokio::time::timeout(options.timeout, call(&mut ctx, &request)).await;
+                let lost = match answer {
+                    Ok(Ok(answer)) => {
+                        writer.response(answer);
+                        None
+                    }
+                    Ok(Err(Failure::Exception(code))) => {
+                        return Err(ModbusError::UnknownException { request, code });
+                    }
+                    Ok(Err(Failure::Link(error))) => Some(error.to_string()),
+                    Err(_) => Some(format!(
+                        "no answer within {} ms",
+                        options.timeout.as_millis()
+                    )),
+                };
+                if let Some(why) = lost {
+                    outcome.timeouts += 1;
+                    log.write(
+                        t(start),
+                        exec_log::Event::Message {
+                            text: format!("{request}: {why}; reconnecting"),
+                        },
+                    )?;
+                    // The old connection goes: a late answer on it would be read as the
+                    // answer to the next request.
+                    drop(ctx);
+                    writer.timeout();
+                    outcome.reconnects += 1;
+                    ctx = connect(link, &options).await?;
+                }
+            }
+            None => {
+                // Nothing to send until the writer's next poll: a short wall-time wait.
+                let wait = options
+                    .writer
+                    .poll_interval
+                    .div_f64(options.clock_scale.max(1.0));
+                tokio::time::sleep(
+                    wait.clamp(Duration::from_micros(200), Duration::from_millis(20)),
+                )
+                .await;
+            }
+        }
+        while let Some(event) = writer.next_event() {
+            let time = t(start);
+            match event {
+                WriterEvent::Identified(_) => {}
+                WriterEvent::Published { sequence, slot } => {
+                    outcome.published += 1;
+                    log.write(
+                        time,
+                        exec_log::Event::Sent {
+                            line: sequence as usize,
+                            text: format!("segment {sequence} in slot {slot}"),
+                        },
+                    )?;
+                }
+                WriterEvent::Status(s) => log.write(
+                    time,
+                    exec_log::Event::Status {
+                        state: format!("{:?}", s.state),
+                        pos: s.position(),
+                        blocks_free: None,
+                        rx_free: None,
+                        line: Some(u64::from(s.executed)),
+                    },
+                )?,
+                WriterEvent::Alarm(alarm) => {
+                    outcome.alarm = Some(alarm);
+                    log.write(
+                        time,
+                        exec_log::Event::Alarm {
+                            code: u32::from(alarm.code.code()),
+                            message: alarm.to_string(),
+                        },
+                    )?;
+                    finished = true;
+                }
+                WriterEvent::Done => {
+                    outcome.completed = true;
+                    finished = true;
+                }
+                WriterEvent::Failed(error) => {
+                    outcome.failure = Some(error);
+                    finished = true;
+                }
+            }
+        }
+    }
+    outcome.wall_time = start.elapsed();
+    let reason = outcome
+        .alarm
+        .map(|a| a.to_string())
+        .or_else(|| outcome.failure.as_ref().map(ToString::to_string));
+    log.write(
+        t(start),
+        exec_log::Event::End {
+            completed: outcome.completed,
+            reason,
+        },
+    )?;
+    Ok(outcome)
+}
+
+/// Why a call brought no answer the writer can take.
+enum Failure {
+    /// The link: no connection, a broken one, a garbled frame.
+    Link(tokio_modbus::Error),
+    /// An exception code outside the map's.
+    Exception(u8),
+}
+
+/// Connects to `link`, retrying with a doubling backoff up to `options.max_reconnects`
+/// attempts.
+async fn connect(link: &ModbusLink, options: &ModbusOptions) -> Result<Context, ModbusError> {
+    let mut wait = options.backoff;
+    let mut attempt = 0;
+    loop {
+        attempt += 1;
+        let tried = tokio::time::timeout(options.timeout, open(link)).await;
+        let error = match tried {
+            Ok(Ok(ctx)) => return Ok(ctx),
+            Ok(Err(error)) => error,
+            Err(_) => std::io::Error::new(
+                std::io::ErrorKind::TimedOut,
+                format!("no connection within {} ms", options.timeout.as_millis()),
+            ),
+        };
+        if attempt >= options.max_reconnects.max(1) {
+            return Err(ModbusError::Connect {
+                link: link.to_string(),
+                attempts: attempt,
+                source: error,
+            });
+        }
+        tokio::time::sleep(wait).await;
+        wait = (wait * 2).min(options.max_backoff);
+    }
+}
+
+async fn open(link: &ModbusLink) -> std::io::Result<Context> {
+    match link {
+        ModbusLink::Tcp(addr) => {
+            tokio_modbus::client::tcp::connect_slave(*addr, Slave(UNIT_ID)).await
+        }
+        ModbusLink::Rtu { path, baud } => {
+            let port = tokio_serial::new(path, *baud)
+                .open_native_async()
+                .map_err(std::io::Error::other)?;
+            Ok(tokio_modbus::client::rtu::attach_slave(
+                port,
+                Slave(UNIT_ID),
+            ))
+        }
+    }
+}
+
+/// One request over `ctx`, its answer as the writer reads answers.
+async fn call(
+    ctx: &mut Context,
+    request: &Request,
+) -> Result<Result<Response, Exception>, Failure> {
+    let answer = match request {
+        Request::ReadHolding { address, count } => ctx
+            .read_holding_registers(*address, *count)
+            .await
+            .map(|r| r.map(Response::ReadHolding)),
+        Request::WriteSingle { address, value } => {
+            ctx.write_single_register(*address, *value).await.map(|r| {
+                r.map(|()| Response::WriteSingle {
+                    address: *address,
+                    value: *value,
+                })
+            })
+        }
+        Request::WriteMultiple { address, values } => ctx
+            .write_multiple_registers(*address, values)
+            .await
+            .map(|r| {
+                r.map(|()| Response::WriteMultiple {
+                    address: *address,
+                    count: values.len() as u16,
+                })
+            }),
+    };
+    match answer {
+        Ok(Ok(response)) => Ok(Ok(response)),
+        Ok(Err(code)) => exception(code)
+            .map(Err)
+            .ok_or(Failure::Exception(code.into())),
+        Err(error) => Err(Failure::Link(error)),
+    }
+}
+
+fn exception(code: ExceptionCode) -> Option<Exception> {
+    Some(match code {
+        ExceptionCode::IllegalFunction => Exception::IllegalFunction,
+        ExceptionCode::IllegalDataAddress => Exception::IllegalDataAddress,
+        ExceptionCode::IllegalDataValue => Exception::IllegalDataValue,
+        ExceptionCode::ServerDeviceFailure => Exception::ServerDeviceFailure,
+        ExceptionCode::ServerDeviceBusy => Exception::ServerDeviceBusy,
+        _ => return None,
+    })
+}
