@@ -22,8 +22,9 @@ use crate::gcode::program::{Axis, Block, Pose, Program};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum NumberType {
-    /// 32-bit floats (grbl family): about 7 significant digits, so C must be rebased
-    /// (G92) before its magnitude costs precision.
+    /// 32-bit floats (grbl family): about 7 significant digits of the *machine* position,
+    /// which G92 cannot win back, so C's resolution at its largest value is a cost in the
+    /// planner's error budget.
     F32,
     /// 64-bit floats (LinuxCNC).
     F64,
@@ -32,7 +33,7 @@ pub enum NumberType {
 impl NumberType {
     /// The gap between adjacent representable numbers at `value`: the resolution the
     /// controller has there (at C = 180 000° an f32 resolves 0.015625°). Infinite for a
-    /// value the type cannot hold. The planner uses it to decide how often to rebase C.
+    /// value the type cannot hold. The planner counts half of it in its rounding share.
     pub fn spacing_at(self, value: f64) -> f64 {
         match self {
             NumberType::F32 => {
@@ -128,7 +129,8 @@ pub struct MachineProfile {
     pub name: String,
     /// Controller language.
     pub dialect: Dialect,
-    /// How the controller holds coordinates; `f32` makes the planner rebase C.
+    /// How the controller holds coordinates; with `f32`, C's resolution at its largest
+    /// value is counted in the error budget.
     pub number: NumberType,
     /// What the controller's X words mean.
     pub x_mode: XMode,

@@ -11,7 +11,7 @@ use crate::gcode::program::Program;
 use crate::interference::{self, Interference};
 use crate::job::{Job, JobError};
 use crate::linkage::{Linkage, Ring, Whirling};
-use crate::machine::{self, MachineProfile, NumberType};
+use crate::machine::{self, MachineProfile};
 use crate::path::{self, PathSpec};
 use crate::profile::{ConcaveStretch, Profile};
 use crate::segment;
@@ -212,22 +212,19 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         angular = angular.min(digits.saturating_sub(whole) as u32);
     }
     let written = |d: u32| 0.5 * 10f64.powi(-(d as i32));
-    let (linear_held, c_held) = match machine.number {
-        NumberType::F64 => (0.0, 0.0),
-        NumberType::F32 => {
-            let c_held = f32_half_ulp(c_max) * mm_per_deg;
-            if c_held > delta / 2.0 {
-                return Err(PlanError::CPrecision {
-                    c_max,
-                    resolution_deg: f32_half_ulp(c_max),
-                    error_mm: c_held,
-                    delta,
-                });
-            }
-            let z_max = z_from.abs().max(z_to.abs());
-            (f32_half_ulp(x_max).max(f32_half_ulp(z_max)), c_held)
-        }
-    };
+    // Half the spacing of the controller's numbers: how far a held value can be from the
+    // one asked for.
+    let held = |v: f64| machine.number.spacing_at(v) / 2.0;
+    let c_held = held(c_max) * mm_per_deg;
+    if c_held > delta / 2.0 {
+        return Err(PlanError::CPrecision {
+            c_max,
+            resolution_deg: held(c_max),
+            error_mm: c_held,
+            delta,
+        });
+    }
+    let linear_held = held(x_max).max(held(z_from.abs().max(z_to.abs())));
     let rounding = (written(linear) + linear_held) * 2.0 + written(angular) * mm_per_deg + c_held;
 
     let blend = machine
@@ -307,13 +304,6 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         text,
         report,
     })
-}
-
-/// Half a unit in the last place of a 32-bit float of magnitude `v`: how far from `v` the
-/// nearest float can be.
-fn f32_half_ulp(v: f64) -> f64 {
-    let v = v.abs().max(f64::from(f32::MIN_POSITIVE));
-    2f64.powi(v.log2().floor() as i32 - 24)
 }
 
 /// The X at which the ring is clear of the work all round.

@@ -409,3 +409,23 @@ fn log_summary_and_plot_read_an_executed_path_log() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("line 1"));
 }
+
+#[test]
+fn a_groove_too_long_for_a_32_bit_controllers_c_is_refused_naming_how_far_c_goes() {
+    // 400 mm of the ball screw at 0.06 mm a turn: C passes 2.4 million degrees, where a
+    // 32-bit float holds C to ±0.125°; by screw invariance that is up to
+    // 0.125° · π/180 · p = 3.5 µm off the surface (p = 10/2π mm), over half of Δ = 5 µm.
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(util::example("ball-screw")).unwrap();
+    let long = text.replace("length = 100.0", "length = 400.0");
+    assert_ne!(long, text);
+    let job = util::write(dir.path(), "long.toml", &long);
+    let message = refused(&job, None);
+    assert!(message.contains("32-bit positions"), "{message}");
+    assert!(message.contains("±0.125°"), "{message}");
+    // A controller with 64-bit positions plans it.
+    let linuxcnc = util::root().join("machine-profiles/linuxcnc-lathe.toml");
+    let (out, report) = (dir.path().join("p.nc"), dir.path().join("r.json"));
+    let run = plan(&job, &out, &report, Some(&linuxcnc));
+    assert!(run.ok, "{}", run.stderr);
+}
