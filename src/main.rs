@@ -49,9 +49,14 @@ enum Command {
     Stream {
         /// A program (G-code) or a job (`.toml`, planned for the machine first).
         input: PathBuf,
-        /// The serial port (a device or a pseudo-terminal link such as whirl-sim's).
+        /// The serial port (a device or a pseudo-terminal link such as whirl-sim's), or for
+        /// `--transport modbus-tcp` the controller's address (HOST:PORT).
         #[arg(long)]
         port: String,
+        /// G-code over a serial line, or segments through the Modbus register map
+        /// (docs/modbus.md) over TCP or RTU.
+        #[arg(long, value_enum, default_value_t = Transport::Serial)]
+        transport: Transport,
         /// Baud rate.
         #[arg(long, default_value_t = 115_200)]
         baud: u32,
@@ -129,7 +134,7 @@ enum Command {
     },
 }
 
-/// A dry run's link to the simulator.
+/// How the program goes to the controller.
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum Transport {
     /// G-code, grbl's character counting, over a pseudo-terminal.
@@ -280,6 +285,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Stream {
             input,
             port,
+            transport,
             baud,
             machine,
             log,
@@ -297,6 +303,11 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     .with_context(|| format!("cannot read {}", input.display()))?
             };
             let lines: Vec<String> = text.lines().map(str::to_owned).collect();
+            if transport != Transport::Serial {
+                return stream_modbus(
+                    &input, &text, &lines, &machine, &port, transport, baud, &log,
+                );
+            }
             let mut exec_log = whirl::exec_log::ExecLog::append(&log)?;
             let bar = progress_bar(lines.len());
             let options = whirl::transport::StreamOptions {
@@ -531,6 +542,61 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 ExitCode::from(BEYOND_DELTA)
             })
         }
+    }
+}
+
+/// `whirl stream --transport modbus-tcp|modbus-rtu`: the program checked against the
+/// machine, then its segments streamed through the register map.
+#[allow(clippy::too_many_arguments)]
+fn stream_modbus(
+    input: &Path,
+    text: &str,
+    lines: &[String],
+    machine: &MachineProfile,
+    port: &str,
+    transport: Transport,
+    baud: u32,
+    log: &Path,
+) -> Result<ExitCode> {
+    use whirl::transport::modbus::{stream_modbus, ModbusLink, ModbusOptions};
+    whirl::transport::check_program(lines, machine)?;
+    let program = whirl::gcode::parse::read_program(text, machine.x_diameter())?;
+    let segments = whirl::modbus::map::segments(&program)?;
+    let link = match transport {
+        Transport::ModbusTcp => ModbusLink::Tcp(
+            port.parse()
+                .with_context(|| format!("--port {port}: not a HOST:PORT address"))?,
+        ),
+        _ => ModbusLink::Rtu {
+            path: port.to_owned(),
+            baud,
+        },
+    };
+    let mut exec_log = whirl::exec_log::ExecLog::append(log)?;
+    let options = ModbusOptions {
+        program: input.display().to_string(),
+        ..ModbusOptions::default()
+    };
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    let outcome = runtime.block_on(stream_modbus(&link, segments, options, &mut exec_log))?;
+    println!(
+        "{}: {} of {} segments published over {link} in {:.1} s ({} timeouts, {} reconnects)",
+        input.display(),
+        outcome.published,
+        outcome.segments,
+        outcome.wall_time.as_secs_f64(),
+        outcome.timeouts,
+        outcome.reconnects
+    );
+    if outcome.completed {
+        return Ok(ExitCode::SUCCESS);
+    }
+    match (outcome.alarm, outcome.failure) {
+        (Some(alarm), _) => anyhow::bail!("the controller stopped the stream: {alarm}"),
+        (None, Some(failure)) => anyhow::bail!("the stream failed: {failure}"),
+        (None, None) => anyhow::bail!("the stream ended before the controller read done"),
     }
 }
 

@@ -27,6 +27,9 @@ struct Cli {
     /// Serve one connection on this TCP address (loopback unless you say otherwise).
     #[arg(long)]
     tcp: Option<String>,
+    /// Serve the Modbus register map (docs/modbus.md) on this TCP address instead of G-code.
+    #[arg(long, conflicts_with_all = ["pty", "tcp"])]
+    modbus_tcp: Option<String>,
     /// Machine profile (TOML); default: machine-profiles/sim.toml, built in.
     #[arg(long)]
     machine: Option<PathBuf>,
@@ -106,7 +109,32 @@ async fn run(cli: Cli) -> Result<()> {
             }
         }
     };
-    if let Some(link) = &cli.pty {
+    if let Some(addr) = &cli.modbus_tcp {
+        use whirl_sim::modbus::serve::{serve_tcp, ClockOptions};
+        use whirl_sim::modbus::{Bank, BankOptions};
+        anyhow::ensure!(
+            cli.time_scale > 0.0,
+            "--modbus-tcp needs a time scale above 0: the bridge feeds the watchdog in the \
+             controller's time"
+        );
+        let listener = tokio::net::TcpListener::bind(addr)
+            .await
+            .with_context(|| format!("cannot listen on {addr}"))?;
+        eprintln!("whirl-sim: serving Modbus on {}", listener.local_addr()?);
+        let bank = Bank::new(controller, BankOptions::default())?;
+        let clock = ClockOptions {
+            time_scale: cli.time_scale,
+            idle_exit: serve_options.idle_exit,
+            ..ClockOptions::default()
+        };
+        serve_tcp(
+            listener,
+            std::sync::Arc::new(std::sync::Mutex::new(bank)),
+            clock,
+            log,
+        )
+        .await?;
+    } else if let Some(link) = &cli.pty {
         let (master, slave) =
             tokio_serial::SerialStream::pair().context("cannot open a pseudo-terminal")?;
         let device = slave

@@ -29,6 +29,8 @@ pub struct ClockOptions {
     pub time_scale: f64,
     /// Wall time between clock steps.
     pub tick: Duration,
+    /// Stop serving (Ok) after this much wall time without a request; `None`: never.
+    pub idle_exit: Option<Duration>,
 }
 
 impl Default for ClockOptions {
@@ -36,6 +38,7 @@ impl Default for ClockOptions {
         ClockOptions {
             time_scale: 1.0,
             tick: Duration::from_millis(2),
+            idle_exit: None,
         }
     }
 }
@@ -44,6 +47,17 @@ impl Default for ClockOptions {
 #[derive(Clone)]
 struct Front {
     bank: SharedBank,
+    /// When the last request came, for [`ClockOptions::idle_exit`].
+    last_request: Arc<Mutex<tokio::time::Instant>>,
+}
+
+impl Front {
+    fn new(bank: &SharedBank) -> Front {
+        Front {
+            bank: Arc::clone(bank),
+            last_request: Arc::new(Mutex::new(tokio::time::Instant::now())),
+        }
+    }
 }
 
 impl Service for Front {
@@ -53,6 +67,10 @@ impl Service for Front {
     type Future = Ready<Result<Self::Response, Self::Exception>>;
 
     fn call(&self, req: Self::Request) -> Self::Future {
+        *self
+            .last_request
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner()) = tokio::time::Instant::now();
         if req.slave != UNIT_ID {
             return ready(Ok(None));
         }
@@ -110,15 +128,26 @@ fn to_exception(exception: Exception) -> ExceptionCode {
     }
 }
 
-/// Advances `bank` in simulated time for ever, handing its events to `on_event`.
+/// Advances `bank` in simulated time, handing its events to `on_event`, until the client
+/// has been silent for [`ClockOptions::idle_exit`].
 async fn run_clock(
-    bank: SharedBank,
+    front: Front,
     clock: ClockOptions,
     mut on_event: impl FnMut(&Event),
 ) -> io::Result<()> {
+    let bank = front.bank;
     let mut last = tokio::time::Instant::now();
     loop {
         tokio::time::sleep(clock.tick).await;
+        if let Some(idle) = clock.idle_exit {
+            let since = *front
+                .last_request
+                .lock()
+                .unwrap_or_else(|poisoned| poisoned.into_inner());
+            if since.elapsed() >= idle {
+                return Ok(());
+            }
+        }
         let now = tokio::time::Instant::now();
         let dt = (now - last).as_secs_f64() * clock.time_scale;
         last = now;
@@ -134,8 +163,9 @@ async fn run_clock(
     }
 }
 
-/// Serves `bank` on Modbus TCP connections accepted from `listener` until the clock fails
-/// (a bad time step) or accepting does; every event goes to `on_event`.
+/// Serves `bank` on Modbus TCP connections accepted from `listener` until the client has
+/// been silent for [`ClockOptions::idle_exit`], the clock fails (a bad time step) or
+/// accepting does; every event goes to `on_event`.
 pub async fn serve_tcp(
     listener: tokio::net::TcpListener,
     bank: SharedBank,
@@ -143,9 +173,7 @@ pub async fn serve_tcp(
     on_event: impl FnMut(&Event),
 ) -> io::Result<()> {
     let server = tokio_modbus::server::tcp::Server::new(listener);
-    let front = Front {
-        bank: Arc::clone(&bank),
-    };
+    let front = Front::new(&bank);
     let on_connected = |stream, _addr| {
         let front = front.clone();
         async move { Ok(Some((front, stream))) }
@@ -153,7 +181,7 @@ pub async fn serve_tcp(
     let on_error = |error: io::Error| tracing_free_report(&error);
     tokio::select! {
         served = server.serve(&on_connected, on_error) => served,
-        clocked = run_clock(bank, clock, on_event) => clocked,
+        clocked = run_clock(front.clone(), clock, on_event) => clocked,
     }
 }
 
@@ -166,12 +194,10 @@ pub async fn serve_rtu(
     on_event: impl FnMut(&Event),
 ) -> io::Result<()> {
     let server = tokio_modbus::server::rtu::Server::new(serial);
-    let front = Front {
-        bank: Arc::clone(&bank),
-    };
+    let front = Front::new(&bank);
     tokio::select! {
-        served = server.serve_forever(front) => served,
-        clocked = run_clock(bank, clock, on_event) => clocked,
+        served = server.serve_forever(front.clone()) => served,
+        clocked = run_clock(front, clock, on_event) => clocked,
     }
 }
 
