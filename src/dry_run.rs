@@ -155,7 +155,83 @@ struct SimSide {
     log_error: Option<LogError>,
 }
 
+/// The simulated controller for `machine`, its Δ guard watching for `job`'s groove, and the
+/// number of target points the guard will measure.
+fn guarded_controller(
+    job: &Job,
+    machine: &MachineProfile,
+    options: ControllerOptions,
+) -> Result<(Controller, usize), DryRunError> {
+    let guard = DeltaGuard::new(job, machine)?;
+    let points = guard.points();
+    let mut controller = Controller::new(&simulator::machine(machine), options)?;
+    controller.set_guard(Box::new(guard));
+    Ok((controller, points))
+}
+
+/// How a run ended, in the terms of either transport.
+struct Ending {
+    completed: bool,
+    lines: usize,
+    acked: usize,
+    stop: Option<String>,
+    link_utilization: f64,
+}
+
 impl SimSide {
+    fn new(log: &ExecLog) -> SimSide {
+        SimSide {
+            log: log.clone(),
+            started: Instant::now(),
+            last_answer: 0.0,
+            motion: None,
+            alarms: Vec::new(),
+            log_error: None,
+        }
+    }
+
+    /// The report of a run named `name` that ended so, with what the guard of `controller`
+    /// measured of its `points`.
+    fn report(
+        self,
+        name: &str,
+        controller: &Controller,
+        points: usize,
+        ending: Ending,
+        baud: u32,
+    ) -> Result<DryRunReport, DryRunError> {
+        if let Some(error) = self.log_error {
+            return Err(error.into());
+        }
+        let measured = controller
+            .guard()
+            .map(|g| g.measured())
+            .expect("a dry run's controller has its guard");
+        let within_delta = ending.completed
+            && self.alarms.is_empty()
+            && measured.points == points
+            && measured.max_error_mm() <= measured.delta_mm;
+        Ok(DryRunReport {
+            job: name.to_owned(),
+            within_delta,
+            completed: ending.completed,
+            lines: ending.lines,
+            lines_acked: ending.acked,
+            stop: ending.stop,
+            machine_time_s: self.motion.map_or(0.0, |(start, end)| end - start),
+            wall_time_s: self.started.elapsed().as_secs_f64(),
+            baud,
+            link_utilization: ending.link_utilization,
+            max_error_mm: measured.max_error_mm(),
+            max_overcut_mm: measured.max_overcut_mm,
+            max_undercut_mm: measured.max_undercut_mm,
+            delta_mm: measured.delta_mm,
+            points_measured: measured.points,
+            points,
+            alarms: self.alarms,
+        })
+    }
+
     fn on_event(&mut self, event: &Event) {
         let logged = match event {
             Event::Line { time, .. } => {
@@ -210,31 +286,21 @@ pub async fn dry_run(
 ) -> Result<DryRunReport, DryRunError> {
     // Refused before the simulator exists, as a machine would be left untouched.
     transport::check_program(&lines, machine).map_err(StreamError::from)?;
-    let guard = DeltaGuard::new(job, machine)?;
-    let points = guard.points();
-    let mut controller = Controller::new(
-        &simulator::machine(machine),
+    let (mut controller, points) = guarded_controller(
+        job,
+        machine,
         ControllerOptions {
             rx_buffer_size: options.rx_size,
             ..ControllerOptions::default()
         },
     )?;
-    controller.set_guard(Box::new(guard));
     // Booted long before the port opened, as a board on a USB link is: no banner waiting.
     controller.take_output();
     let (master, slave) = tokio_serial::SerialStream::pair().map_err(DryRunError::Pty)?;
     let device = slave
         .name()
         .ok_or_else(|| DryRunError::Simulator(std::io::Error::other("the pty has no name")))?;
-    let started = Instant::now();
-    let mut sim = SimSide {
-        log: log.clone(),
-        started,
-        last_answer: 0.0,
-        motion: None,
-        alarms: Vec::new(),
-        log_error: None,
-    };
+    let mut sim = SimSide::new(log);
     let serve_options = ServeOptions {
         time_scale: options.time_scale,
         fast_step: FAST_STEP_S,
@@ -262,42 +328,24 @@ pub async fn dry_run(
         }
     };
     drop(slave);
-    if let Some(error) = sim.log_error {
-        return Err(error.into());
-    }
-    let measured = controller
-        .guard()
-        .map(|g| g.measured())
-        .expect("the guard was set above");
     let completed = outcome.completed();
-    let within_delta = completed
-        && sim.alarms.is_empty()
-        && measured.points == points
-        && measured.max_error_mm() <= measured.delta_mm;
-    Ok(DryRunReport {
-        job: program.to_owned(),
-        within_delta,
+    let ending = Ending {
         completed,
         lines: total,
-        lines_acked: outcome.lines_acked,
-        stop: (!completed).then(|| outcome.ending.to_string()),
-        machine_time_s: sim.motion.map_or(0.0, |(start, end)| end - start),
-        wall_time_s: started.elapsed().as_secs_f64(),
-        baud: options.baud,
+        acked: outcome.lines_acked,
+        stop: match &outcome.ending {
+            transport::Ending::Completed => None,
+            transport::Ending::Stopped(reason) => Some(reason.to_string()),
+            other => Some(other.to_string()),
+        },
         link_utilization: link_utilization(
             outcome.bytes_written,
             options.baud,
             Duration::from_secs_f64(sim.last_answer),
         )
         .unwrap_or(0.0),
-        max_error_mm: measured.max_error_mm(),
-        max_overcut_mm: measured.max_overcut_mm,
-        max_undercut_mm: measured.max_undercut_mm,
-        delta_mm: measured.delta_mm,
-        points_measured: measured.points,
-        points,
-        alarms: sim.alarms,
-    })
+    };
+    sim.report(program, &controller, points, ending, options.baud)
 }
 
 /// Which Modbus link a Modbus dry run uses.
@@ -340,11 +388,7 @@ pub async fn dry_run_modbus(
     let segments =
         crate::modbus::map::segments(program).map_err(|e| DryRunError::Modbus(e.to_string()))?;
     let total = segments.len();
-    let guard = DeltaGuard::new(job, machine)?;
-    let points = guard.points();
-    let mut controller =
-        Controller::new(&simulator::machine(machine), ControllerOptions::default())?;
-    controller.set_guard(Box::new(guard));
+    let (controller, points) = guarded_controller(job, machine, ControllerOptions::default())?;
     let bank = Bank::new(
         controller,
         BankOptions {
@@ -358,15 +402,7 @@ pub async fn dry_run_modbus(
         time_scale: scale,
         ..ClockOptions::default()
     };
-    let started = Instant::now();
-    let mut sim = SimSide {
-        log: log.clone(),
-        started,
-        last_answer: 0.0,
-        motion: None,
-        alarms: Vec::new(),
-        log_error: None,
-    };
+    let mut sim = SimSide::new(log);
     let stream_options = ModbusOptions {
         clock_scale: scale,
         program: name.to_owned(),
@@ -417,52 +453,28 @@ pub async fn dry_run_modbus(
             outcome
         }
     };
-    // What the clock had not handed over yet.
     let bank = bank.lock().unwrap_or_else(|p| p.into_inner());
-    if let Some(error) = sim.log_error {
-        return Err(error.into());
-    }
-    let measured = bank
-        .controller()
-        .guard()
-        .map(|g| g.measured())
-        .expect("the guard was set above");
-    let completed = outcome.completed;
-    let within_delta = completed
-        && sim.alarms.is_empty()
-        && outcome.alarm.is_none()
-        && measured.points == points
-        && measured.max_error_mm() <= measured.delta_mm;
-    let mut alarms = sim.alarms;
-    if let Some(a) = outcome.alarm {
-        if alarms.is_empty() {
-            alarms.push(AlarmReport {
-                code: a.code.code(),
-                message: a.to_string(),
+    if let Some(alarm) = outcome.alarm {
+        // An alarm of the map's own (a refused slot, the watchdog) the controller did not
+        // raise: the simulator's events have none for it.
+        if sim.alarms.is_empty() {
+            sim.alarms.push(AlarmReport {
+                code: alarm.code.code(),
+                message: alarm.to_string(),
                 detail: None,
             });
         }
     }
-    Ok(DryRunReport {
-        job: name.to_owned(),
-        within_delta,
-        completed,
+    let ending = Ending {
+        completed: outcome.completed,
         lines: total,
-        lines_acked: outcome.published,
+        acked: outcome.published,
         stop: outcome
             .alarm
             .map(|a| a.to_string())
             .or_else(|| outcome.failure.as_ref().map(ToString::to_string)),
-        machine_time_s: sim.motion.map_or(0.0, |(start, end)| end - start),
-        wall_time_s: started.elapsed().as_secs_f64(),
-        baud: options.baud,
+        // A TCP link has no byte rate to fill; the RTU line's use is not measured yet.
         link_utilization: 0.0,
-        max_error_mm: measured.max_error_mm(),
-        max_overcut_mm: measured.max_overcut_mm,
-        max_undercut_mm: measured.max_undercut_mm,
-        delta_mm: measured.delta_mm,
-        points_measured: measured.points,
-        points,
-        alarms,
-    })
+    };
+    sim.report(name, bank.controller(), points, ending, options.baud)
 }
