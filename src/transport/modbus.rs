@@ -21,7 +21,7 @@ use std::net::SocketAddr;
 use std::time::Duration;
 use thiserror::Error;
 use tokio::time::Instant;
-use tokio_modbus::client::{Context, Reader, Writer};
+use tokio_modbus::client::{Client, Context};
 use tokio_modbus::{ExceptionCode, Slave};
 use tokio_serial::SerialPortBuilderExt;
 
@@ -136,6 +136,15 @@ pub enum ModbusError {
         /// The code.
         code: u8,
     },
+    /// An answer of another function than the request's (a late answer on a serial line,
+    /// a confused gateway).
+    #[error("{request}: answered {answer}")]
+    Mismatch {
+        /// What was asked.
+        request: Request,
+        /// The answer.
+        answer: String,
+    },
     /// The executed-path log.
     #[error("executed-path log: {0}")]
     Log(#[from] LogError),
@@ -160,7 +169,8 @@ pub async fn stream_modbus(
             transport: link.transport().to_owned(),
         },
     )?;
-    let mut ctx = connect(link, &options).await?;
+    // `None` once the writer has given up on a request: no new connection is made for it.
+    let mut ctx = Some(connect(link, &options).await?);
     let mut outcome = ModbusOutcome {
         completed: false,
         segments: total,
@@ -176,14 +186,24 @@ pub async fn stream_modbus(
         let now = start.elapsed().mul_f64(options.clock_scale);
         match writer.poll(now) {
             Some(request) => {
-                let answer = tokio::time::timeout(options.timeout, call(&mut ctx, &request)).await;
+                let Some(conn) = ctx.as_mut() else {
+                    break;
+                };
+                let answer = tokio::time::timeout(options.timeout, call(conn, &request)).await;
                 let lost = match answer {
                     Ok(Ok(answer)) => {
                         writer.response(answer);
                         None
                     }
                     Ok(Err(Failure::Exception(code))) => {
-                        return Err(ModbusError::UnknownException { request, code });
+                        let error = ModbusError::UnknownException { request, code };
+                        end(log, t(start), false, Some(error.to_string()))?;
+                        return Err(error);
+                    }
+                    Ok(Err(Failure::Mismatch(answer))) => {
+                        let error = ModbusError::Mismatch { request, answer };
+                        end(log, t(start), false, Some(error.to_string()))?;
+                        return Err(error);
                     }
                     Ok(Err(Failure::Link(error))) => Some(error.to_string()),
                     Err(_) => Some(format!(
@@ -201,10 +221,12 @@ pub async fn stream_modbus(
                     )?;
                     // The old connection goes: a late answer on it would be read as the
                     // answer to the next request.
-                    drop(ctx);
+                    ctx = None;
                     writer.timeout();
-                    outcome.reconnects += 1;
-                    ctx = connect(link, &options).await?;
+                    if !writer.is_finished() {
+                        outcome.reconnects += 1;
+                        ctx = Some(connect(link, &options).await?);
+                    }
                 }
             }
             None => {
@@ -270,14 +292,13 @@ pub async fn stream_modbus(
         .alarm
         .map(|a| a.to_string())
         .or_else(|| outcome.failure.as_ref().map(ToString::to_string));
-    log.write(
-        t(start),
-        exec_log::Event::End {
-            completed: outcome.completed,
-            reason,
-        },
-    )?;
+    end(log, t(start), outcome.completed, reason)?;
     Ok(outcome)
+}
+
+/// The log's last event of a stream.
+fn end(log: &mut ExecLog, t: f64, completed: bool, reason: Option<String>) -> Result<(), LogError> {
+    log.write(t, exec_log::Event::End { completed, reason })
 }
 
 /// Why a call brought no answer the writer can take.
@@ -286,6 +307,8 @@ enum Failure {
     Link(tokio_modbus::Error),
     /// An exception code outside the map's.
     Exception(u8),
+    /// An answer of another function than the request's.
+    Mismatch(String),
 }
 
 /// Connects to `link`, retrying with a doubling backoff up to `options.max_reconnects`
@@ -334,35 +357,40 @@ async fn open(link: &ModbusLink) -> std::io::Result<Context> {
 }
 
 /// One request over `ctx`, its answer as the writer reads answers.
+///
+/// The answer is passed on as it came: the registers read, the address and value an FC06
+/// echoes, the address and count an FC16 confirms, and the writer checks each against its
+/// request. tokio-modbus's `Reader` and `Writer` calls would not do: they return no echo
+/// and check echoes and counts only with debug assertions (a panic in a debug build,
+/// nothing in a release one), so an answer meant for another request (a late one on a
+/// serial line, a confused gateway's) would crash the bridge or be taken for this one's.
 async fn call(
     ctx: &mut Context,
     request: &Request,
 ) -> Result<Result<Response, Exception>, Failure> {
-    let answer = match request {
-        Request::ReadHolding { address, count } => ctx
-            .read_holding_registers(*address, *count)
-            .await
-            .map(|r| r.map(Response::ReadHolding)),
-        Request::WriteSingle { address, value } => {
-            ctx.write_single_register(*address, *value).await.map(|r| {
-                r.map(|()| Response::WriteSingle {
-                    address: *address,
-                    value: *value,
-                })
-            })
+    let wire = match request {
+        Request::ReadHolding { address, count } => {
+            tokio_modbus::Request::ReadHoldingRegisters(*address, *count)
         }
-        Request::WriteMultiple { address, values } => ctx
-            .write_multiple_registers(*address, values)
-            .await
-            .map(|r| {
-                r.map(|()| Response::WriteMultiple {
-                    address: *address,
-                    count: values.len() as u16,
-                })
-            }),
+        Request::WriteSingle { address, value } => {
+            tokio_modbus::Request::WriteSingleRegister(*address, *value)
+        }
+        Request::WriteMultiple { address, values } => {
+            tokio_modbus::Request::WriteMultipleRegisters(*address, values.into())
+        }
     };
-    match answer {
-        Ok(Ok(response)) => Ok(Ok(response)),
+    match ctx.call(wire).await {
+        Ok(Ok(tokio_modbus::Response::ReadHoldingRegisters(values))) => {
+            Ok(Ok(Response::ReadHolding(values)))
+        }
+        Ok(Ok(tokio_modbus::Response::WriteSingleRegister(address, value))) => {
+            Ok(Ok(Response::WriteSingle { address, value }))
+        }
+        Ok(Ok(tokio_modbus::Response::WriteMultipleRegisters(address, count))) => {
+            Ok(Ok(Response::WriteMultiple { address, count }))
+        }
+        // tokio-modbus refuses an answer whose function code is not the request's.
+        Ok(Ok(other)) => Err(Failure::Mismatch(format!("{other:?}"))),
         Ok(Err(code)) => exception(code)
             .map(Err)
             .ok_or(Failure::Exception(code.into())),

@@ -6,6 +6,7 @@ mod dry_run;
 mod link;
 mod linkage;
 mod modbus_map;
+mod modbus_wire;
 mod python_client;
 mod sim;
 mod stream;
