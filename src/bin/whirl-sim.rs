@@ -30,6 +30,10 @@ struct Cli {
     /// Serve the Modbus register map (docs/modbus.md) on this TCP address instead of G-code.
     #[arg(long, conflicts_with_all = ["pty", "tcp"])]
     modbus_tcp: Option<String>,
+    /// Serve the Modbus register map as an RTU server on a new pseudo-terminal; PATH becomes
+    /// a symlink to its device.
+    #[arg(long, conflicts_with_all = ["pty", "tcp", "modbus_tcp"])]
+    modbus_rtu: Option<PathBuf>,
     /// Machine profile (TOML); default: machine-profiles/sim.toml, built in.
     #[arg(long)]
     machine: Option<PathBuf>,
@@ -109,45 +113,36 @@ async fn run(cli: Cli) -> Result<()> {
             }
         }
     };
-    if let Some(addr) = &cli.modbus_tcp {
-        use whirl_sim::modbus::serve::{serve_tcp, ClockOptions};
+    if cli.modbus_tcp.is_some() || cli.modbus_rtu.is_some() {
+        use whirl_sim::modbus::serve::{serve_rtu, serve_tcp, ClockOptions};
         use whirl_sim::modbus::{Bank, BankOptions};
         anyhow::ensure!(
             cli.time_scale > 0.0,
-            "--modbus-tcp needs a time scale above 0: the bridge feeds the watchdog in the \
+            "Modbus needs a time scale above 0: the bridge feeds the watchdog in the \
              controller's time"
         );
-        let listener = tokio::net::TcpListener::bind(addr)
-            .await
-            .with_context(|| format!("cannot listen on {addr}"))?;
-        eprintln!("whirl-sim: serving Modbus on {}", listener.local_addr()?);
         let bank = Bank::new(controller, BankOptions::default())?;
+        let bank = std::sync::Arc::new(std::sync::Mutex::new(bank));
         let clock = ClockOptions {
             time_scale: cli.time_scale,
             idle_exit: serve_options.idle_exit,
             ..ClockOptions::default()
         };
-        serve_tcp(
-            listener,
-            std::sync::Arc::new(std::sync::Mutex::new(bank)),
-            clock,
-            log,
-        )
-        .await?;
+        if let Some(addr) = &cli.modbus_tcp {
+            let listener = tokio::net::TcpListener::bind(addr)
+                .await
+                .with_context(|| format!("cannot listen on {addr}"))?;
+            eprintln!("whirl-sim: serving Modbus on {}", listener.local_addr()?);
+            serve_tcp(listener, bank, clock, log).await?;
+        } else if let Some(link) = &cli.modbus_rtu {
+            let (master, _slave) = pty_at(link)?;
+            serve_rtu(master, bank, clock, log).await?;
+        }
     } else if let Some(link) = &cli.pty {
-        let (master, slave) =
-            tokio_serial::SerialStream::pair().context("cannot open a pseudo-terminal")?;
-        let device = slave
-            .name()
-            .context("the pseudo-terminal has no device name")?;
-        let _ = std::fs::remove_file(link);
-        std::os::unix::fs::symlink(&device, link)
-            .with_context(|| format!("cannot link {} to {device}", link.display()))?;
-        eprintln!("whirl-sim: serving on {} -> {device}", link.display());
-        // Keep the slave end open so the terminal lives while clients come and go. A board on
-        // a USB serial port booted long before the host opened it: the host never sees its
-        // power-up banner, so none is left waiting in the terminal (a soft reset shows one).
-        let _slave = slave;
+        // A board on a USB serial port booted long before the host opened it: the host
+        // never sees its power-up banner, so none is left waiting in the terminal (a soft
+        // reset shows one).
+        let (master, _slave) = pty_at(link)?;
         controller.take_output();
         serve(master, &mut controller, serve_options, log).await?;
     } else {
@@ -160,4 +155,22 @@ async fn run(cli: Cli) -> Result<()> {
         serve(socket, &mut controller, serve_options, log).await?;
     }
     Ok(())
+}
+
+/// A new pseudo-terminal with a symlink to its device at `link`: the master end to serve,
+/// and the slave end, which the caller keeps open so the terminal lives while clients come
+/// and go.
+fn pty_at(
+    link: &std::path::Path,
+) -> Result<(tokio_serial::SerialStream, tokio_serial::SerialStream)> {
+    let (master, slave) =
+        tokio_serial::SerialStream::pair().context("cannot open a pseudo-terminal")?;
+    let device = slave
+        .name()
+        .context("the pseudo-terminal has no device name")?;
+    let _ = std::fs::remove_file(link);
+    std::os::unix::fs::symlink(&device, link)
+        .with_context(|| format!("cannot link {} to {device}", link.display()))?;
+    eprintln!("whirl-sim: serving on {} -> {device}", link.display());
+    Ok((master, slave))
 }

@@ -14,8 +14,14 @@ impl Sim {
     }
 
     fn start_with(link: &std::path::Path, args: &[&OsStr]) -> Sim {
+        Sim::serving(OsStr::new("--pty"), link, args)
+    }
+
+    /// whirl-sim started with `flag LINK args…`, once the pseudo-terminal it makes at
+    /// `link` exists.
+    fn serving(flag: &OsStr, link: &std::path::Path, args: &[&OsStr]) -> Sim {
         let child = Command::new(env!("CARGO_BIN_EXE_whirl-sim"))
-            .args([OsStr::new("--pty"), link.as_os_str()])
+            .args([flag, link.as_os_str()])
             .args(args)
             .stderr(Stdio::null())
             .spawn()
@@ -233,25 +239,56 @@ fn whirl_stream_sends_a_program_through_the_modbus_map_to_whirl_sim_over_tcp() {
         .unwrap_or_else(|| panic!("{banner}"))
         .to_owned();
     let _sim = Sim(child);
+    stream_through_the_modbus_map(dir.path(), "modbus-tcp", &address, &sim_log);
+}
+
+#[test]
+fn whirl_stream_sends_a_program_through_the_modbus_map_to_whirl_sim_over_rtu() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("rtu");
+    let sim_log = dir.path().join("sim.jsonl");
+    let _sim = Sim::serving(
+        OsStr::new("--modbus-rtu"),
+        &link,
+        &[
+            OsStr::new("--time-scale"),
+            OsStr::new("1"),
+            OsStr::new("--idle-exit"),
+            OsStr::new("10"),
+            OsStr::new("--log"),
+            sim_log.as_os_str(),
+        ],
+    );
+    stream_through_the_modbus_map(dir.path(), "modbus-rtu", link.to_str().unwrap(), &sim_log);
+}
+
+/// Streams a short program with `whirl stream --transport TRANSPORT --port PORT` to a
+/// whirl-sim serving the Modbus map, and checks from the simulator's own log that every
+/// moving segment executed once, in order.
+fn stream_through_the_modbus_map(
+    dir: &std::path::Path,
+    transport: &str,
+    port: &str,
+    sim_log: &std::path::Path,
+) {
     // 30 feeds of 1 mm along X at 3000 mm/min, linked moves turning C, and the way back.
     let mut lines = vec!["G21 G90 G94".to_owned(), "G0 X0 Z0 C0".to_owned()];
     lines.extend((1..=30).map(|k| format!("G1 X{k} F3000")));
     lines.extend((1..=10).map(|k| format!("G93 G1 X30 Z{k} C{} F600", 36 * k)));
     lines.extend(["G94 G0 X0".to_owned(), "M2".to_owned()]);
-    let program = util::write(dir.path(), "short.nc", &(lines.join("\n") + "\n"));
+    let program = util::write(dir, "short.nc", &(lines.join("\n") + "\n"));
     let o = util::whirl(&[
         OsStr::new("stream"),
         program.as_os_str(),
         OsStr::new("--transport"),
-        OsStr::new("modbus-tcp"),
+        OsStr::new(transport),
         OsStr::new("--port"),
-        OsStr::new(&address),
+        OsStr::new(port),
         OsStr::new("--log"),
-        dir.path().join("exec.jsonl").as_os_str(),
+        dir.join("exec.jsonl").as_os_str(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    // The simulator's own log: every moving segment executed once, in order.
-    let text = std::fs::read_to_string(&sim_log).unwrap();
+    let text = std::fs::read_to_string(sim_log).unwrap();
     let executed: Vec<u64> = text
         .lines()
         .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
