@@ -170,7 +170,7 @@ fn guarded_controller(
 }
 
 /// How a run ended, in the terms of either transport.
-struct Ending {
+struct RunEnd {
     completed: bool,
     lines: usize,
     acked: usize,
@@ -197,7 +197,7 @@ impl SimSide {
         name: &str,
         controller: &Controller,
         points: usize,
-        ending: Ending,
+        ending: RunEnd,
         baud: u32,
     ) -> Result<DryRunReport, DryRunError> {
         if let Some(error) = self.log_error {
@@ -315,21 +315,14 @@ pub async fn dry_run(
         on_progress: options.on_progress,
         ..StreamOptions::default()
     };
-    let outcome: StreamOutcome = {
-        let served = serve(master, &mut controller, serve_options, |e| sim.on_event(e));
-        let streamed = transport::stream_port(&device, options.baud, lines, stream_options, log);
-        tokio::pin!(served, streamed);
-        tokio::select! {
-            outcome = &mut streamed => outcome?,
-            ended = &mut served => {
-                let why = ended.err().unwrap_or_else(|| std::io::Error::other("link closed"));
-                return Err(DryRunError::Simulator(why));
-            }
-        }
-    };
+    let outcome: StreamOutcome = until_streamed(
+        serve(master, &mut controller, serve_options, |e| sim.on_event(e)),
+        transport::stream_port(&device, options.baud, lines, stream_options, log),
+    )
+    .await?;
     drop(slave);
     let completed = outcome.completed();
-    let ending = Ending {
+    let ending = RunEnd {
         completed,
         lines: total,
         acked: outcome.lines_acked,
@@ -346,6 +339,21 @@ pub async fn dry_run(
         .unwrap_or(0.0),
     };
     sim.report(program, &controller, points, ending, options.baud)
+}
+
+/// Runs the simulator's side (`served`) until the bridge's (`streamed`) has finished and
+/// gives the bridge's result; the simulator ending first is an error.
+async fn until_streamed<T, E: Into<DryRunError>>(
+    served: impl std::future::Future<Output = std::io::Result<()>>,
+    streamed: impl std::future::Future<Output = Result<T, E>>,
+) -> Result<T, DryRunError> {
+    tokio::pin!(served, streamed);
+    tokio::select! {
+        outcome = &mut streamed => outcome.map_err(Into::into),
+        ended = &mut served => Err(DryRunError::Simulator(ended.err().unwrap_or_else(|| {
+            std::io::Error::other("the simulator stopped serving")
+        }))),
+    }
 }
 
 /// Which Modbus link a Modbus dry run uses.
@@ -414,19 +422,14 @@ pub async fn dry_run_modbus(
                 .await
                 .map_err(DryRunError::Simulator)?;
             let addr = listener.local_addr().map_err(DryRunError::Simulator)?;
-            let served = serve_tcp(listener, std::sync::Arc::clone(&bank), clock, |e| {
-                sim.on_event(e)
-            });
             let link = ModbusLink::Tcp(addr);
-            let streamed = stream_modbus(&link, segments, stream_options, log);
-            tokio::pin!(served, streamed);
-            tokio::select! {
-                outcome = &mut streamed => outcome?,
-                ended = &mut served => {
-                    let why = ended.err().unwrap_or_else(|| std::io::Error::other("server ended"));
-                    return Err(DryRunError::Simulator(why));
-                }
-            }
+            until_streamed(
+                serve_tcp(listener, std::sync::Arc::clone(&bank), clock, |e| {
+                    sim.on_event(e)
+                }),
+                stream_modbus(&link, segments, stream_options, log),
+            )
+            .await?
         }
         ModbusKind::Rtu => {
             let (master, slave) = tokio_serial::SerialStream::pair().map_err(DryRunError::Pty)?;
@@ -437,18 +440,13 @@ pub async fn dry_run_modbus(
                 path: device,
                 baud: options.baud,
             };
-            let served = serve_rtu(master, std::sync::Arc::clone(&bank), clock, |e| {
-                sim.on_event(e)
-            });
-            let streamed = stream_modbus(&link, segments, stream_options, log);
-            tokio::pin!(served, streamed);
-            let outcome = tokio::select! {
-                outcome = &mut streamed => outcome?,
-                ended = &mut served => {
-                    let why = ended.err().unwrap_or_else(|| std::io::Error::other("server ended"));
-                    return Err(DryRunError::Simulator(why));
-                }
-            };
+            let outcome = until_streamed(
+                serve_rtu(master, std::sync::Arc::clone(&bank), clock, |e| {
+                    sim.on_event(e)
+                }),
+                stream_modbus(&link, segments, stream_options, log),
+            )
+            .await?;
             drop(slave);
             outcome
         }
@@ -465,7 +463,7 @@ pub async fn dry_run_modbus(
             });
         }
     }
-    let ending = Ending {
+    let ending = RunEnd {
         completed: outcome.completed,
         lines: total,
         acked: outcome.published,

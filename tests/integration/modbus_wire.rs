@@ -658,37 +658,12 @@ async fn an_answer_that_does_not_echo_the_write_fails_the_stream() {
     );
 }
 
-/// Whether `python3` with pymodbus is there. CI installs pymodbus (`.ci/run`); a machine
-/// without it says why the test did nothing rather than failing on a missing tool.
-fn python_with_pymodbus() -> bool {
-    match Command::new("python3")
-        .args(["-c", "import pymodbus"])
-        .output()
-    {
-        Err(e) => {
-            eprintln!("skipped: python3 cannot be run ({e})");
-            false
-        }
-        Ok(o) if !o.status.success() => {
-            eprintln!(
-                "skipped: python3 cannot import pymodbus (python3 -m pip install pymodbus): {}",
-                String::from_utf8_lossy(&o.stderr)
-                    .lines()
-                    .last()
-                    .unwrap_or("")
-            );
-            false
-        }
-        Ok(_) => true,
-    }
-}
-
 /// A third-party Modbus client (pymodbus, `tests/clients/modbus_status.py`), sharing no
 /// code with whirl or tokio-modbus, reads the simulator's identification and status blocks
 /// as docs/modbus.md lays them out.
 #[tokio::test]
 async fn pymodbus_reads_the_simulators_identification_and_status() {
-    if !python_with_pymodbus() {
+    if !util::python_with("pymodbus", "pymodbus") {
         return;
     }
     let slots = 8;

@@ -8,68 +8,8 @@ use crate::util;
 use std::collections::HashMap;
 use std::ffi::OsStr;
 use std::fs::File;
-use std::path::Path;
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::process::{Command, ExitStatus};
 use std::time::{Duration, Instant};
-
-/// whirl-sim with an RX buffer of `rx` bytes on a pseudo-terminal linked at `link`; killed
-/// when dropped.
-struct Sim(Child);
-
-impl Sim {
-    fn start(link: &Path, rx: usize) -> Sim {
-        let child = Command::new(env!("CARGO_BIN_EXE_whirl-sim"))
-            .arg("--pty")
-            .arg(link)
-            .args(["--time-scale", "50", "--rx", &rx.to_string()])
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("whirl-sim starts");
-        // Owned at once, so that it is killed even if the link never appears.
-        let sim = Sim(child);
-        let deadline = Instant::now() + Duration::from_secs(10);
-        while !link.exists() {
-            assert!(
-                Instant::now() < deadline,
-                "whirl-sim made no pseudo-terminal"
-            );
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        sim
-    }
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-/// Whether `python3` with pyserial is there. CI installs pyserial (`.ci/run`); a machine
-/// without it says why the test did nothing rather than failing on a missing tool.
-fn python_with_pyserial() -> bool {
-    match Command::new("python3")
-        .args(["-c", "import serial"])
-        .output()
-    {
-        Err(e) => {
-            eprintln!("skipped: python3 cannot be run ({e})");
-            false
-        }
-        Ok(o) if !o.status.success() => {
-            eprintln!(
-                "skipped: python3 cannot import pyserial (python3 -m pip install pyserial): {}",
-                String::from_utf8_lossy(&o.stderr)
-                    .lines()
-                    .last()
-                    .unwrap_or("")
-            );
-            false
-        }
-        Ok(_) => true,
-    }
-}
 
 /// A program of a few hundred moves inside the simulated machine's travel
 /// (`machine-profiles/sim.toml`: X −5…160, Z −300…300, C unlimited), with N words, both
@@ -122,7 +62,17 @@ struct Run {
 fn stream(program: &str, sim_rx: usize, client_rx: usize) -> Run {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("grbl");
-    let _sim = Sim::start(&link, sim_rx);
+    let rx = sim_rx.to_string();
+    let _sim = util::Sim::serving(
+        OsStr::new("--pty"),
+        &link,
+        &[
+            OsStr::new("--time-scale"),
+            OsStr::new("50"),
+            OsStr::new("--rx"),
+            OsStr::new(&rx),
+        ],
+    );
     let file = util::write(dir.path(), "program.nc", program);
     // Output goes to files: a pipe left unread could fill and stall the client.
     let (out_path, err_path) = (dir.path().join("stdout"), dir.path().join("stderr"));
@@ -169,7 +119,7 @@ fn stream(program: &str, sim_rx: usize, client_rx: usize) -> Run {
 
 /// Every line with a block sent once and answered by exactly one `ok`.
 fn assert_every_line_ok(sim_rx: usize, client_rx: usize) {
-    if !python_with_pyserial() {
+    if !util::python_with("serial", "pyserial") {
         return;
     }
     let (text, blocks) = program();
@@ -196,7 +146,7 @@ fn an_independent_grbl_client_gets_one_ok_per_line_from_a_128_byte_buffer() {
 /// silently, sim/README.md).
 #[test]
 fn a_client_counting_on_a_larger_buffer_than_the_controller_has_gets_errors() {
-    if !python_with_pyserial() {
+    if !util::python_with("serial", "pyserial") {
         return;
     }
     let (text, _) = program();

@@ -1,55 +1,24 @@
 //! `whirl stream` to `whirl-sim` over a real pseudo-terminal, end to end.
 
-use crate::util;
+use crate::util::{self, Sim};
 use std::ffi::OsStr;
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::{Command, Stdio};
 
-/// whirl-sim on a pseudo-terminal linked at `link`; killed when dropped.
-struct Sim(Child);
-
-impl Sim {
-    fn start(link: &std::path::Path) -> Sim {
-        Sim::start_with(link, &[OsStr::new("--time-scale"), OsStr::new("50")])
-    }
-
-    fn start_with(link: &std::path::Path, args: &[&OsStr]) -> Sim {
-        Sim::serving(OsStr::new("--pty"), link, args)
-    }
-
-    /// whirl-sim started with `flag LINK args…`, once the pseudo-terminal it makes at
-    /// `link` exists.
-    fn serving(flag: &OsStr, link: &std::path::Path, args: &[&OsStr]) -> Sim {
-        let child = Command::new(env!("CARGO_BIN_EXE_whirl-sim"))
-            .args([flag, link.as_os_str()])
-            .args(args)
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("whirl-sim starts");
-        let deadline = Instant::now() + Duration::from_secs(10);
-        while !link.exists() {
-            assert!(
-                Instant::now() < deadline,
-                "whirl-sim made no pseudo-terminal"
-            );
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        Sim(child)
-    }
+/// whirl-sim on a pseudo-terminal linked at `link`, 50 times real time.
+fn sim(link: &std::path::Path) -> Sim {
+    sim_with(link, &[OsStr::new("--time-scale"), OsStr::new("50")])
 }
 
-impl Drop for Sim {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
+/// whirl-sim on a pseudo-terminal linked at `link`, with `args`.
+fn sim_with(link: &std::path::Path, args: &[&OsStr]) -> Sim {
+    Sim::serving(OsStr::new("--pty"), link, args)
 }
 
 #[test]
 fn a_program_streams_to_the_simulator_with_every_line_acknowledged_and_logged() {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("grbl");
-    let _sim = Sim::start(&link);
+    let _sim = sim(&link);
     // The lead-in and 60 linked moves of a planned program, then the retract.
     let planned = dir.path().join("p.nc");
     let o = util::whirl(&[
@@ -119,7 +88,7 @@ fn whirl_sim_with_a_job_stops_a_coarse_program_with_alarm_64_and_logs_why() {
     let link = dir.path().join("grbl");
     let job = util::example("double-start");
     let sim_log = dir.path().join("sim.jsonl");
-    let _sim = Sim::start_with(
+    let _sim = sim_with(
         &link,
         &[
             OsStr::new("--time-scale"),
@@ -170,7 +139,7 @@ fn resume_at_streams_from_that_line_behind_a_preamble_and_runs_nothing_before_it
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("grbl");
     let sim_log = dir.path().join("sim.jsonl");
-    let _sim = Sim::start_with(
+    let _sim = sim_with(
         &link,
         &[
             OsStr::new("--time-scale"),

@@ -81,3 +81,63 @@ pub fn coarse_program(job: &Path, dir: &Path) -> PathBuf {
         .collect();
     write(dir, "coarse.nc", &(coarse.join("\n") + "\n"))
 }
+
+/// whirl-sim, killed when dropped.
+pub struct Sim(pub std::process::Child);
+
+impl Sim {
+    /// whirl-sim started with `flag LINK args…` (`--pty`, `--modbus-rtu`), once the
+    /// pseudo-terminal it makes at `link` exists.
+    pub fn serving(flag: &std::ffi::OsStr, link: &Path, args: &[&std::ffi::OsStr]) -> Sim {
+        let child = std::process::Command::new(env!("CARGO_BIN_EXE_whirl-sim"))
+            .args([flag, link.as_os_str()])
+            .args(args)
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .expect("whirl-sim starts");
+        // Owned at once, so that it is killed even if the link never appears.
+        let sim = Sim(child);
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+        while !link.exists() {
+            assert!(
+                std::time::Instant::now() < deadline,
+                "whirl-sim made no pseudo-terminal"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        sim
+    }
+}
+
+impl Drop for Sim {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Whether `python3` can import `module` (the pip package `package`). CI installs the
+/// clients' packages (`.ci/run`); a machine without them says why a test did nothing
+/// rather than failing on a missing tool.
+pub fn python_with(module: &str, package: &str) -> bool {
+    match std::process::Command::new("python3")
+        .args(["-c", &format!("import {module}")])
+        .output()
+    {
+        Err(e) => {
+            eprintln!("skipped: python3 cannot be run ({e})");
+            false
+        }
+        Ok(o) if !o.status.success() => {
+            eprintln!(
+                "skipped: python3 cannot import {package} (python3 -m pip install {package}): {}",
+                String::from_utf8_lossy(&o.stderr)
+                    .lines()
+                    .last()
+                    .unwrap_or("")
+            );
+            false
+        }
+        Ok(_) => true,
+    }
+}

@@ -178,7 +178,7 @@ pub async fn serve_tcp(
         let front = front.clone();
         async move { Ok(Some((front, stream))) }
     };
-    let on_error = |error: io::Error| tracing_free_report(&error);
+    let on_error = |error: io::Error| report_connection_end(&error);
     tokio::select! {
         served = server.serve(&on_connected, on_error) => served,
         clocked = run_clock(front.clone(), clock, on_event) => clocked,
@@ -203,6 +203,6 @@ pub async fn serve_rtu(
 
 /// A connection that failed mid-request ends that connection only; the server goes on
 /// accepting. The simulator has no logger, so the failure goes to stderr.
-fn tracing_free_report(error: &io::Error) {
+fn report_connection_end(error: &io::Error) {
     eprintln!("whirl-sim: Modbus connection ended: {error}");
 }
