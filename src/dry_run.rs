@@ -16,7 +16,7 @@ use crate::exec_log::{self, ExecLog, LogError};
 use crate::job::Job;
 use crate::machine::MachineProfile;
 use crate::protocol::codes::alarm_message;
-use crate::simulator::{self, guard::DeltaGuard};
+use crate::simulator::{self, cycles::MergedGuard, guard::DeltaGuard};
 use crate::transport::{
     self, link_utilization, ProgressFn, StreamError, StreamOptions, StreamOutcome,
 };
@@ -24,7 +24,7 @@ use serde::Serialize;
 use std::time::{Duration, Instant};
 use tokio_serial::SerialPort;
 use whirl_sim::serve::{serve, ServeOptions};
-use whirl_sim::{Controller, ControllerOptions, Event, MoveKind};
+use whirl_sim::{Controller, ControllerOptions, Event, Measured, MoveKind};
 
 /// Simulated seconds per step when the clock runs as fast as it can: fine enough for the
 /// 5 Hz status polls and the emulated link (at 115 200 baud, 58 bytes a step).
@@ -141,6 +141,12 @@ pub enum DryRunError {
     /// The Modbus transport.
     #[error(transparent)]
     ModbusStream(#[from] crate::transport::modbus::ModbusError),
+    /// The program or the drive settings cannot go to the CAN drives.
+    #[error("CAN: {0}")]
+    Can(String),
+    /// The CAN transport.
+    #[error(transparent)]
+    CanStream(#[from] crate::transport::can::CanError),
 }
 
 /// What the simulator side collects while it serves.
@@ -190,12 +196,12 @@ impl SimSide {
         }
     }
 
-    /// The report of a run named `name` that ended so, with what the guard of `controller`
-    /// measured of its `points`.
+    /// The report of a run named `name` that ended so, with what the guard `measured` of
+    /// its `points`.
     fn report(
         self,
         name: &str,
-        controller: &Controller,
+        measured: Measured,
         points: usize,
         ending: RunEnd,
         baud: u32,
@@ -203,10 +209,6 @@ impl SimSide {
         if let Some(error) = self.log_error {
             return Err(error.into());
         }
-        let measured = controller
-            .guard()
-            .map(|g| g.measured())
-            .expect("a dry run's controller has its guard");
         let within_delta = ending.completed
             && self.alarms.is_empty()
             && measured.points == points
@@ -233,22 +235,15 @@ impl SimSide {
     }
 
     fn on_event(&mut self, event: &Event) {
-        let logged = match event {
-            Event::Line { time, .. } => {
-                self.last_answer = *time;
-                None
-            }
-            Event::Executed(block) => {
-                let start = self.motion.map_or(block.start_time, |m| m.0);
-                self.motion = Some((start, block.end_time));
-                Some(exec_log::Event::Executed {
-                    line: block.n.map(|n| n as usize),
-                    times: [block.start_time, block.end_time],
-                    from: block.from.to_array(),
-                    to: block.to.to_array(),
-                    rapid: block.kind == MoveKind::Rapid,
-                })
-            }
+        match event {
+            Event::Line { time, .. } => self.last_answer = *time,
+            Event::Executed(block) => self.executed(exec_log::Event::Executed {
+                line: block.n.map(|n| n as usize),
+                times: [block.start_time, block.end_time],
+                from: block.from.to_array(),
+                to: block.to.to_array(),
+                rapid: block.kind == MoveKind::Rapid,
+            }),
             Event::Alarm { alarm, breach, .. } => {
                 let code = u16::from(alarm.code());
                 self.alarms.push(AlarmReport {
@@ -256,20 +251,61 @@ impl SimSide {
                     message: alarm_message(code).to_owned(),
                     detail: breach.as_ref().map(|b| b.message.clone()),
                 });
-                breach.as_ref().map(|b| exec_log::Event::Message {
-                    text: format!("simulator: {}", b.message),
-                })
+                if let Some(b) = breach {
+                    self.message(format!("simulator: {}", b.message));
+                }
             }
-            Event::RxOverflow { dropped, .. } => Some(exec_log::Event::Message {
-                text: format!("simulator: RX buffer overflow, {dropped} bytes dropped"),
-            }),
-            Event::Reset { .. } | Event::State { .. } => None,
-        };
-        if let Some(e) = logged {
-            let t = self.started.elapsed().as_secs_f64();
-            if let Err(error) = self.log.write(t, e) {
-                self.log_error.get_or_insert(error);
+            Event::RxOverflow { dropped, .. } => self.message(format!(
+                "simulator: RX buffer overflow, {dropped} bytes dropped"
+            )),
+            Event::Reset { .. } | Event::State { .. } => {}
+        }
+    }
+
+    /// The simulated drives' cycles, merged into a move.
+    fn stretch(&mut self, stretch: simulator::cycles::Stretch) {
+        self.executed(exec_log::Event::Executed {
+            line: None,
+            times: stretch.times,
+            from: stretch.from,
+            to: stretch.to,
+            rapid: false,
+        });
+    }
+
+    /// The Δ guard stopped the simulated drives: reported as grbl's ALARM:64 is.
+    fn breach(&mut self, breach: &whirl_sim::Breach) {
+        self.alarms.push(AlarmReport {
+            code: 64,
+            message: alarm_message(64).to_owned(),
+            detail: Some(breach.message.clone()),
+        });
+        self.message(format!("simulator: {}", breach.message));
+    }
+
+    /// A move the simulator executed (`event` is [`exec_log::Event::Executed`]).
+    fn executed(&mut self, event: exec_log::Event) {
+        if let exec_log::Event::Executed {
+            times, from, to, ..
+        } = &event
+        {
+            // Machine time is motion's: from the first move that went somewhere.
+            if from != to || self.motion.is_some() {
+                let start = self.motion.map_or(times[0], |m| m.0);
+                self.motion = Some((start, times[1]));
             }
+        }
+        self.log(event);
+    }
+
+    fn message(&mut self, text: String) {
+        self.log(exec_log::Event::Message { text });
+    }
+
+    fn log(&mut self, event: exec_log::Event) {
+        let t = self.started.elapsed().as_secs_f64();
+        if let Err(error) = self.log.write(t, event) {
+            self.log_error.get_or_insert(error);
         }
     }
 }
@@ -338,7 +374,15 @@ pub async fn dry_run(
         )
         .unwrap_or(0.0),
     };
-    sim.report(program, &controller, points, ending, options.baud)
+    sim.report(program, measured(&controller), points, ending, options.baud)
+}
+
+/// What the Δ guard of a dry run's controller measured.
+fn measured(controller: &Controller) -> Measured {
+    controller
+        .guard()
+        .map(|g| g.measured())
+        .expect("a dry run's controller has its guard")
 }
 
 /// Runs the simulator's side (`served`) until the bridge's (`streamed`) has finished and
@@ -474,5 +518,123 @@ pub async fn dry_run_modbus(
         // A TCP link has no byte rate to fill; the RTU line's use is not measured yet.
         link_utilization: 0.0,
     };
-    sim.report(name, bank.controller(), points, ending, options.baud)
+    sim.report(
+        name,
+        measured(bank.controller()),
+        points,
+        ending,
+        options.baud,
+    )
+}
+
+/// Simulated seconds per wall second of a CAN dry run before the cycle runs (boot-up,
+/// configuration): real time, as the drives' and the master's timeouts are set for it.
+/// Once the cycle runs, the drives' clock is the master's SYNC and the job goes as fast
+/// as the link and the simulator allow.
+const CAN_BOOT_TIME_SCALE: f64 = 1.0;
+
+/// Dry-runs `program` (planned for `job` on `machine`) on three simulated CiA 402 drives
+/// behind an slcan adapter on a pseudo-terminal, set as `drives` says: whirl's CANopen
+/// master streams the set-points through the adapter in lockstep with the drives' SYNC
+/// clock ([`crate::transport::can::CanClock::SyncLocked`]), and the Δ guard judges the
+/// cycles the drives executed, merged into the straight stretches they make up
+/// ([`simulator::cycles`]). The log gets the master's events and the same stretches.
+///
+/// The report counts set-points as its lines (`lines`, `lines_acked`: sent), and gives the
+/// CAN bus's load as `link_utilization`, at the adapter's bit rate, without stuff bits.
+pub async fn dry_run_can(
+    job: &Job,
+    machine: &MachineProfile,
+    name: &str,
+    program: &crate::gcode::program::Program,
+    drives: &crate::connection::DriveSettings,
+    log: &mut ExecLog,
+) -> Result<DryRunReport, DryRunError> {
+    use crate::can::slcan::Bitrate;
+    use crate::transport::can::{stream_can, CanClock, CanLink, CanOptions};
+    use whirl_sim::canopen::serve::{serve_slcan, ServeOptions};
+    use whirl_sim::canopen::{Bus, BusConfig, BusEvent};
+
+    crate::machine::check_limits(program, machine)
+        .map_err(|e| DryRunError::Can(format!("block {}: {e}", e.block())))?;
+    let settings = |e: crate::connection::SettingError| DryRunError::Can(e.to_string());
+    let session = drives.session_config().map_err(settings)?;
+    let counts_per_unit = drives.counts_per_unit();
+    let guard = DeltaGuard::new(job, machine)?;
+    let points = guard.points();
+    let mut bus = Bus::new(BusConfig::for_machine(
+        &simulator::machine(machine),
+        counts_per_unit,
+        drives.period(),
+        whirl_sim::Position::default(),
+    ))
+    .map_err(|e| DryRunError::Can(e.to_string()))?;
+    bus.set_guard(Box::new(MergedGuard::new(guard, counts_per_unit)));
+    let bus = std::sync::Arc::new(std::sync::Mutex::new(bus));
+    let (master, slave) = tokio_serial::SerialStream::pair().map_err(DryRunError::Pty)?;
+    let device = slave
+        .name()
+        .ok_or_else(|| DryRunError::Simulator(std::io::Error::other("the pty has no name")))?;
+    let bitrate = Bitrate::M1;
+    let link = CanLink::Slcan {
+        path: device,
+        baud: 115_200,
+        bitrate,
+    };
+    let options = CanOptions {
+        session,
+        sample: drives.sample_config(machine),
+        clock: CanClock::SyncLocked,
+        answer_timeout: Duration::from_secs(5),
+        program: name.to_owned(),
+    };
+    let serve_options = ServeOptions {
+        time_scale: CAN_BOOT_TIME_SCALE,
+        ..ServeOptions::default()
+    };
+    let mut sim = SimSide::new(log);
+    let mut merger = simulator::cycles::Merger::new(counts_per_unit);
+    let outcome = until_streamed(
+        serve_slcan(
+            master,
+            std::sync::Arc::clone(&bus),
+            serve_options,
+            |event| match event {
+                BusEvent::Executed(block) => {
+                    if let Some(stretch) = merger.push(block) {
+                        sim.stretch(stretch);
+                    }
+                }
+                BusEvent::Breach { breach, .. } => sim.breach(breach),
+                BusEvent::Drive { node, event } => {
+                    sim.message(format!("simulator: node {node}: {event:?}"))
+                }
+            },
+        ),
+        stream_can(&link, program, options, log),
+    )
+    .await?;
+    drop(slave);
+    if let Some(stretch) = merger.finish() {
+        sim.stretch(stretch);
+    }
+    let mut bus = bus.lock().unwrap_or_else(|p| p.into_inner());
+    if outcome.completed {
+        // The job's end: the guard settles the points that waited for later motion.
+        if let Err(breach) = bus.program_end() {
+            sim.breach(&breach);
+        }
+    }
+    let measured = bus
+        .guard()
+        .map(|g| g.measured())
+        .expect("the dry run's bus has its guard");
+    let ending = RunEnd {
+        completed: outcome.completed,
+        lines: outcome.setpoints,
+        acked: outcome.sent,
+        stop: outcome.stop.as_ref().map(ToString::to_string),
+        link_utilization: outcome.bus_load(bitrate.bits_per_second()),
+    };
+    sim.report(name, measured, points, ending, bitrate.bits_per_second())
 }

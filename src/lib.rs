@@ -28,6 +28,8 @@
 //!
 //! - [`job`]: the job file (groove, tool, cut).
 //! - [`machine`]: machine profiles: dialect, number type, travel, rates.
+//! - [`connection`]: a profile's `[connection]`: how the bridge reaches the machine
+//!   (serial, Modbus TCP/RTU, CAN through slcan or SocketCAN, with the drives' settings).
 //! - [`profile`]: groove sections ([`profile::points`], [`profile::spline`],
 //!   [`profile::standard`]).
 //! - [`linkage`]: kinematics.md's node solver, one profile point → one pose; [`brent`] its
@@ -76,6 +78,7 @@ pub mod brent;
 pub mod budget;
 pub mod can;
 pub mod check;
+pub mod connection;
 pub mod dry_run;
 pub mod exec_log;
 pub mod gcode;

@@ -9,12 +9,16 @@
 //! offset from the spindle axis (a radius, mm) even when the controller's X words are
 //! diameters (`x_mode = "diameter"` only changes how the post writes X), Z is axial (mm),
 //! C is the workpiece turn (degrees).
+//!
+//! An optional `[connection]` table says how the bridge reaches the machine (a serial
+//! port, a PLC's Modbus address, CAN drives and their scales); see [`crate::connection`].
 
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use crate::connection::Connection;
 use crate::gcode::post::{Dialect, PostSettings, MIN_LINE_LENGTH};
 use crate::gcode::program::{Axis, Block, Pose, Program};
 
@@ -146,6 +150,10 @@ pub struct MachineProfile {
     pub spindle: Option<Spindle>,
     /// Axis travel and dynamics.
     pub axes: Axes,
+    /// How the bridge reaches this machine (`[connection]`, see [`crate::connection`]);
+    /// absent: the caller says (the command line's flags).
+    #[serde(default)]
+    pub connection: Option<Connection>,
 }
 
 /// Why a profile could not be loaded.
@@ -288,6 +296,9 @@ impl MachineProfile {
         range("axes.c", c.min, c.max)?;
         positive("axes.c.max_rate", c.max_rate)?;
         positive("axes.c.accel", c.accel)?;
+        if let Some(connection) = &self.connection {
+            connection.validate(self).map_err(|e| (e.key, e.problem))?;
+        }
         Ok(())
     }
 
@@ -677,6 +688,7 @@ mod tests {
                     accel: 7200.0,
                 },
             },
+            connection: None,
         }
     }
 
@@ -710,18 +722,153 @@ mod tests {
         let files: Vec<&str> = names.iter().map(|(n, _)| n.as_str()).collect();
         assert_eq!(
             files,
-            ["grblhal-lathe.toml", "linuxcnc-lathe.toml", "sim.toml"]
+            [
+                "canopen-drives.toml",
+                "grblhal-lathe.toml",
+                "linuxcnc-lathe.toml",
+                "modbus-plc.toml",
+                "sim.toml"
+            ]
         );
-        let sim = &names[2].1;
+        let sim = &names[4].1;
         assert_eq!(sim.dialect, Dialect::GrblHal);
         assert_eq!(sim.number, NumberType::F32);
         assert_eq!(sim.x_mode, XMode::Radius);
-        let linuxcnc = &names[1].1;
+        let linuxcnc = &names[2].1;
         assert_eq!(linuxcnc.dialect, Dialect::LinuxCnc);
         assert_eq!(linuxcnc.blend_tolerance_mm, Some(0.001));
         assert_eq!(linuxcnc.x_mode, XMode::Diameter);
         assert!(linuxcnc.post_settings(3, 4).x_diameter);
         assert_eq!(&MachineProfile::builtin_sim().unwrap(), sim);
+        // The G-code machines leave the connection to the caller.
+        for (_, profile) in names
+            .iter()
+            .filter(|(n, _)| n.contains("lathe") || n == "sim.toml")
+        {
+            assert_eq!(profile.connection, None, "{}", profile.name);
+        }
+
+        // A PLC on Modbus TCP: segments carry radius X and machine positions, exact.
+        let plc = &names[3].1;
+        assert_eq!(plc.dialect, Dialect::LinuxCnc);
+        assert_eq!(plc.number, NumberType::F64);
+        assert_eq!(plc.x_mode, XMode::Radius);
+        assert_eq!(plc.blend_tolerance_mm, None);
+        let Some(Connection::ModbusTcp(tcp)) = &plc.connection else {
+            panic!("{:?}", plc.connection);
+        };
+        assert_eq!(
+            tcp.socket_addr(),
+            Some(std::net::SocketAddr::from(([192, 168, 0, 10], 502)))
+        );
+        assert_eq!(tcp.unit, crate::modbus::map::UNIT_ID);
+        assert_eq!(tcp.timeout(), std::time::Duration::from_millis(500));
+
+        // CiA 402 drives through a CANable: 4 ms, 0.1 µm on X and Z, 2^20 counts a turn of C.
+        let drives_profile = &names[0].1;
+        assert_eq!(drives_profile.dialect, Dialect::LinuxCnc);
+        assert_eq!(drives_profile.number, NumberType::F64);
+        assert_eq!(drives_profile.x_mode, XMode::Radius);
+        let Some(Connection::CanSlcan(slcan)) = &drives_profile.connection else {
+            panic!("{:?}", drives_profile.connection);
+        };
+        assert_eq!(slcan.port, "/dev/ttyACM0");
+        assert_eq!(slcan.slcan_bitrate(), Ok(crate::can::slcan::Bitrate::M1));
+        let drives = &slcan.drives;
+        assert_eq!(drives.nodes, [1, 2, 3]);
+        assert_eq!(drives.period(), std::time::Duration::from_millis(4));
+        assert_eq!(
+            drives.counts_per_unit(),
+            [10_000.0, 10_000.0, f64::from(1u32 << 20) / 360.0]
+        );
+        assert_eq!(
+            drives.session_config(),
+            Ok(crate::can::session::SessionConfig::default())
+        );
+        assert_eq!(drives.spin_up(), std::time::Duration::from_secs(2));
+    }
+
+    /// Every example job plans on the two machines that are not reached by G-code, and
+    /// what is planned fits their links: the register map's segments (whose 0.1 µm and
+    /// 10⁻⁴° are no coarser than the decimals the planner counted), and the drives' 32-bit
+    /// linear counts.
+    #[test]
+    fn the_examples_plan_on_the_modbus_and_can_machines() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let mut jobs: Vec<PathBuf> = std::fs::read_dir(root.join("examples"))
+            .unwrap()
+            .map(|entry| entry.unwrap().path().join("job.toml"))
+            .filter(|path| path.exists())
+            .collect();
+        jobs.sort();
+        assert_eq!(jobs.len(), 4, "{jobs:?}");
+        let plc = MachineProfile::load(&root.join("machine-profiles/modbus-plc.toml")).unwrap();
+        let can = MachineProfile::load(&root.join("machine-profiles/canopen-drives.toml")).unwrap();
+        let drives = can
+            .connection
+            .as_ref()
+            .and_then(Connection::drives)
+            .unwrap();
+        for path in &jobs {
+            let job = crate::job::Job::load(path).unwrap();
+            for machine in [&plc, &can] {
+                let plan = crate::plan::plan(&job, machine)
+                    .unwrap_or_else(|e| panic!("{} on {}: {e}", path.display(), machine.name));
+                let [linear, angular] = plan.report.decimals;
+                assert!(linear <= 4 && angular <= 4, "{path:?}: {linear}, {angular}");
+                check_limits(&plan.program, machine).unwrap();
+                // Modbus: every block fits a segment, and the shortest linked move is within
+                // a controller that takes 55 segments a second (the profile's comment).
+                let segments = crate::modbus::map::segments(&plan.program)
+                    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                crate::modbus::map::check_rate(&segments, 55)
+                    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                // CAN: X and Z stay in INTEGER32 counts, and every linked move spans at
+                // least four cycles.
+                for step in plan.program.steps(Pose::UNKNOWN) {
+                    for (slot, axis) in [Axis::X, Axis::Z].into_iter().enumerate() {
+                        if let Some(value) = step.to.get(axis) {
+                            let counts = value * drives.counts_per_mm[slot];
+                            assert!(counts.abs() < f64::from(i32::MAX), "{counts}");
+                        }
+                    }
+                    if let Block::Linked { minutes, .. } = *step.block {
+                        assert!(minutes * 60.0 >= 4.0 * drives.period().as_secs_f64());
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_bad_connection_is_refused_naming_its_key() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let text =
+            std::fs::read_to_string(root.join("machine-profiles/canopen-drives.toml")).unwrap();
+        let bad = text.replacen("cycle_us = 4000", "cycle_us = 100", 1);
+        assert_ne!(bad, text);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bad.toml");
+        std::fs::write(&path, bad).unwrap();
+        let error = MachineProfile::load(&path).unwrap_err();
+        let message = error.to_string();
+        assert!(
+            matches!(&error, ProfileError::Invalid { key, .. } if key == "connection.drives.cycle_us"),
+            "{message}"
+        );
+        assert!(
+            message.contains("bad.toml: connection.drives.cycle_us: 100 µs must be 250 to"),
+            "{message}"
+        );
+        // A key the table does not know is a schema error that names it.
+        let unknown = text.replacen("cycle_us = 4000", "cycle_ms = 4", 1);
+        let message = MachineProfile::from_toml(&unknown, "x.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            message.contains("connection.drives: unknown field `cycle_ms`"),
+            "{message}"
+        );
     }
 
     const SIM: &str = r#"

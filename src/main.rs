@@ -143,6 +143,10 @@ enum Transport {
     ModbusTcp,
     /// The Modbus register map over Modbus RTU on a pseudo-terminal.
     ModbusRtu,
+    /// CiA 402 drives through an slcan (Lawicel) CAN adapter on a serial line.
+    CanSlcan,
+    /// CiA 402 drives on a socketcan interface.
+    Can,
 }
 
 #[derive(Subcommand)]
@@ -437,6 +441,25 @@ fn run(cli: Cli) -> Result<ExitCode> {
                         )
                         .await
                     }
+                    Transport::CanSlcan => {
+                        let program =
+                            whirl::gcode::parse::read_program(&text, machine.x_diameter())
+                                .with_context(|| format!("cannot read {name}"))?;
+                        let drives = can_drives(&machine)?;
+                        whirl::dry_run::dry_run_can(
+                            &job,
+                            &machine,
+                            &name,
+                            &program,
+                            drives,
+                            &mut exec_log,
+                        )
+                        .await
+                    }
+                    Transport::Can => anyhow::bail!(
+                        "the simulated drives are reached through an slcan adapter, not a \
+                         socketcan interface: dry-run with --transport can-slcan"
+                    ),
                 }
                 .map_err(anyhow::Error::from)
             });
@@ -543,6 +566,22 @@ fn run(cli: Cli) -> Result<ExitCode> {
             })
         }
     }
+}
+
+/// The CAN drives' settings of `machine`'s `[connection]`.
+fn can_drives(machine: &MachineProfile) -> Result<&whirl::connection::DriveSettings> {
+    machine
+        .connection
+        .as_ref()
+        .and_then(|c| c.drives())
+        .with_context(|| {
+            format!(
+                "machine profile \"{}\" has no CAN drives (a [connection] with transport \
+                 can-slcan or can, which gives their nodes, cycle and scales); use one that \
+                 has, such as machine-profiles/canopen-drives.toml",
+                machine.name
+            )
+        })
 }
 
 /// `whirl stream --transport modbus-tcp|modbus-rtu`: the program checked against the

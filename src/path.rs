@@ -7,8 +7,12 @@
 //! G1 move in inverse time, so C (and Z) keep the rate the job sets whatever X does.
 //!
 //! Lead-in: X to its clear position at rapid (it only moves the ring away from the work, see
-//! [`PathSpec::x_clear`]), Z and C to the first node at rapid, the ring spindle on, X in at the
-//! plunge feed. Lead-out: X back to clear at rapid, the spindle off.
+//! [`PathSpec::x_clear`]), C to the first node at rapid, then Z, the ring spindle on, X in at
+//! the plunge feed. Lead-out: X back to clear at rapid, the spindle off. C and Z are
+//! positioned one after the other, never together: a controller that does not know a rapid
+//! from a feed (CiA 402 drives take bare set-points) would otherwise see the workpiece turn
+//! while Z goes the wrong way, which is what a helical cut looks like, and the simulator's
+//! Δ guard would judge it as one.
 //!
 //! C is written as it is, however many turns it reaches: grbl-family controllers compute
 //! every target as a 32-bit *machine* position, so renaming C with G92 would win no
@@ -92,8 +96,13 @@ pub fn build(nodes: &Nodes, spec: &PathSpec, title: &str) -> Path {
     });
     blocks.push(Block::Rapid {
         x: None,
-        z: Some(z0),
+        z: None,
         c: Some(c0),
+    });
+    blocks.push(Block::Rapid {
+        x: None,
+        z: Some(z0),
+        c: None,
     });
     blocks.push(Block::SpindleOn { rpm: spec.ring_rpm });
     blocks.push(Block::Feed {

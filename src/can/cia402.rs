@@ -69,6 +69,29 @@ pub mod object {
     /// 60C1h interpolation data record (sub-index 1: the position set-point in
     /// interpolated position mode).
     pub const INTERPOLATION_DATA: u16 = 0x60C1;
+    /// 60C2h interpolation time period: sub 1 the value (UNSIGNED8), sub 2 the index
+    /// (INTEGER8), the period being value × 10^index s. Drives in cyclic synchronous
+    /// modes take it as the SYNC period they lock their cycle to.
+    pub const INTERPOLATION_TIME_PERIOD: u16 = 0x60C2;
+}
+
+/// A cycle period as 60C2h holds it, (value, index) with period = value × 10^index s, or
+/// `None` if that cannot be exact (value at most 255, index from −6: a whole number of
+/// microseconds whose significant digits fit 255).
+pub fn interpolation_time_period(period: std::time::Duration) -> Option<(u8, i8)> {
+    let mut value = period.as_micros();
+    if value == 0 || period.subsec_nanos() % 1000 != 0 {
+        return None;
+    }
+    let mut index = -6i8;
+    while value > 255 {
+        if value % 10 != 0 || index == 0 {
+            return None;
+        }
+        value /= 10;
+        index += 1;
+    }
+    Some((value as u8, index))
 }
 
 /// CiA 402's emergency code for a following error.
@@ -368,7 +391,30 @@ impl Mode {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::time::Duration;
     use PowerState::*;
+
+    #[test]
+    fn cycle_periods_are_written_as_60c2h_value_and_power_of_ten() {
+        let us = Duration::from_micros;
+        // 4 ms = 40 × 10⁻⁴ s; 1 ms = 100 × 10⁻⁵ s; 250 µs as is; 2.5 ms = 250 × 10⁻⁵ s.
+        assert_eq!(interpolation_time_period(us(4000)), Some((40, -4)));
+        assert_eq!(interpolation_time_period(us(1000)), Some((100, -5)));
+        assert_eq!(interpolation_time_period(us(250)), Some((250, -6)));
+        assert_eq!(interpolation_time_period(us(2500)), Some((250, -5)));
+        assert_eq!(
+            interpolation_time_period(Duration::from_secs(100)),
+            Some((100, 0))
+        );
+        // Significant digits beyond 255, sub-microseconds, zero, beyond 255 s: not exact.
+        assert_eq!(interpolation_time_period(us(2560)), None);
+        assert_eq!(
+            interpolation_time_period(Duration::from_nanos(4_000_500)),
+            None
+        );
+        assert_eq!(interpolation_time_period(Duration::ZERO), None);
+        assert_eq!(interpolation_time_period(Duration::from_secs(1000)), None);
+    }
 
     #[test]
     fn statuswords_decode_by_the_standard_masks() {

@@ -152,6 +152,19 @@ impl CanFrame {
             &self.data[..usize::from(self.dlc)]
         }
     }
+
+    /// Bit times the frame holds the bus, without stuff bits: ISO 11898-1's fields (start
+    /// of frame, arbitration, control, data, CRC and its delimiter, acknowledgement, end of
+    /// frame) and the 3-bit intermission before the next. Stuffing adds up to a fifth.
+    pub fn bits(&self) -> u32 {
+        // SOF 1, ID 11, RTR 1, IDE 1, r0 1, DLC 4, CRC 15 + 1, ACK 2, EOF 7, IFS 3; the
+        // extended format adds SRR 1 and 18 more ID bits, its r1 taking RTR's place.
+        let overhead = match self.id {
+            CanId::Standard(_) => 47,
+            CanId::Extended(_) => 67,
+        };
+        overhead + 8 * self.data().len() as u32
+    }
 }
 
 /// candump's format: `123#DEADBEEF`, `123#R2` for a remote frame.
@@ -171,6 +184,16 @@ impl fmt::Display for CanFrame {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_frame_holds_the_bus_for_its_fields_and_data() {
+        // ISO 11898-1 without stuffing: a full 8-byte base frame is 108 bits plus the
+        // 3-bit intermission; a SYNC (no data) 44 + 3; an extended remote request 64 + 3.
+        assert_eq!(CanFrame::standard(0x181, &[0; 8]).unwrap().bits(), 111);
+        assert_eq!(CanFrame::standard(0x080, &[]).unwrap().bits(), 47);
+        let remote = CanFrame::remote(CanId::extended(0x1234).unwrap(), 8).unwrap();
+        assert_eq!(remote.bits(), 67);
+    }
 
     #[test]
     fn identifier_ranges_are_the_standards() {

@@ -13,7 +13,7 @@
 //!    in order: device type 1000h read (CiA 402 is 0192h in its low word: anything else is
 //!    not a drive this master knows how to run), producer heartbeat 1017h, modes of
 //!    operation 6060h = 8 (cyclic synchronous position), following error window 6065h,
-//!    then RPDO1 = controlword 6040h + target position 607Ah and TPDO1 = statusword 6041h +
+//!    interpolation time period 60C2h (the cycle, which the drives lock to), then RPDO1 = controlword 6040h + target position 607Ah and TPDO1 = statusword 6041h +
 //!    position actual 6064h, both every SYNC, by CiA 301's mapping procedure
 //!    ([`canopen::pdo_mapping`]). Heartbeat supervision of a node starts when its 1017h
 //!    write is confirmed.
@@ -61,7 +61,10 @@ use super::canopen::{
     self, cob, decode_emcy, decode_heartbeat, Cob, Emergency, MapEntry, NmtCommand, NmtState,
     NodeId, PdoConfig, PdoDirection, PdoNumber, SdoClient, SdoDone, SdoError, SdoWrite, EVERY_SYNC,
 };
-use super::cia402::{object, Command, Mode, PowerSequencer, PowerState, Statusword, Target};
+use super::cia402::{
+    interpolation_time_period, object, Command, Mode, PowerSequencer, PowerState, Statusword,
+    Target,
+};
 use super::frame::{CanFrame, CanId};
 use super::setpoints::{to_wire, unwrap_near, SetPoints};
 use crate::gcode::program::Axis;
@@ -381,6 +384,67 @@ pub enum Event {
     },
 }
 
+impl std::fmt::Display for Event {
+    /// A line for the log.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let list = |nodes: &[NodeId]| {
+            nodes
+                .iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        match self {
+            Event::BootUp { node } => write!(f, "node {node} booted"),
+            Event::ResetCommunication { nodes } => write!(
+                f,
+                "NMT reset communication to node(s) {} (no boot-up heard)",
+                list(nodes)
+            ),
+            Event::Configured { node } => write!(f, "node {node} configured"),
+            Event::Started => write!(f, "NMT start; the cycle runs"),
+            Event::Enabled { syncs } => write!(
+                f,
+                "every drive follows its target after {syncs} SYNCs; the set-points start"
+            ),
+            Event::Spindle {
+                block,
+                rpm: Some(rpm),
+            } => write!(
+                f,
+                "block {block}: ring spindle on at {rpm} rpm (the ring is not on this bus: \
+                 it must be running now)"
+            ),
+            Event::Spindle { block, rpm: None } => {
+                write!(f, "block {block}: ring spindle off (it may stop now)")
+            }
+            Event::Late { sync, late_by } => write!(
+                f,
+                "SYNC {sync} went out {late_by:?} late; the path slowed by as much"
+            ),
+            Event::Emergency(emcy) => write!(
+                f,
+                "node {} emergency 0x{:04X} ({}), error register 0x{:02X}",
+                emcy.node,
+                emcy.code,
+                emcy_meaning(emcy),
+                emcy.register
+            ),
+            Event::Settled => write!(f, "every drive at its final target"),
+            Event::Finished => write!(f, "finished; the drives are disabled"),
+            Event::Stopped { reason } => write!(f, "stopped: {reason}"),
+            Event::Halted { unconfirmed } if unconfirmed.is_empty() => {
+                write!(f, "halted; every drive confirmed disabled or faulted")
+            }
+            Event::Halted { unconfirmed } => write!(
+                f,
+                "halted; node(s) {} not confirmed disabled",
+                list(unconfirmed)
+            ),
+        }
+    }
+}
+
 /// A drive as the session last saw it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct DriveStatus {
@@ -491,15 +555,21 @@ impl Session {
                 ),
             );
         }
-        if setpoints.period.is_zero() {
-            return invalid("setpoints.period", "a cycle of 0 s".into());
-        }
+        let Some(cycle) = interpolation_time_period(setpoints.period) else {
+            return invalid(
+                "setpoints.period",
+                format!(
+                    "{:?} is not a cycle 60C2h holds (value ≤ 255 × 10^index s, whole µs)",
+                    setpoints.period
+                ),
+            );
+        };
         let drives = std::array::from_fn(|k| {
             let node = config.nodes[k];
             Drive {
                 axis: Axis::ALL[k],
                 sdo: SdoClient::new(node, config.sdo_timeout),
-                ops: configuration(node, &config),
+                ops: configuration(node, &config, cycle),
                 booted: false,
                 heartbeat_due: None,
                 lost: false,
@@ -1104,7 +1174,7 @@ impl Session {
 }
 
 /// A node's configuration steps, in order (see the module docs).
-fn configuration(node: NodeId, config: &SessionConfig) -> VecDeque<Op> {
+fn configuration(node: NodeId, config: &SessionConfig, cycle: (u8, i8)) -> VecDeque<Op> {
     let mut ops = VecDeque::from([
         Op::CheckDeviceType,
         Op::Write(SdoWrite::u16(
@@ -1121,6 +1191,12 @@ fn configuration(node: NodeId, config: &SessionConfig) -> VecDeque<Op> {
             object::FOLLOWING_ERROR_WINDOW,
             0,
             config.following_error_window,
+        )),
+        Op::Write(SdoWrite::u8(object::INTERPOLATION_TIME_PERIOD, 1, cycle.0)),
+        Op::Write(SdoWrite::u8(
+            object::INTERPOLATION_TIME_PERIOD,
+            2,
+            cycle.1 as u8,
         )),
     ]);
     let pdo = PdoNumber::new(1).expect("PDO 1");
@@ -1498,8 +1574,17 @@ mod tests {
             (header(&requests[3]), value(&requests[3])),
             ((0x23, 0x6065, 0), 1000)
         );
+        // 60C2h: the 2 ms cycle as 200 × 10⁻⁵ s, each sub-index one byte.
+        assert_eq!(
+            (header(&requests[4]), value(&requests[4])),
+            ((0x2F, 0x60C2, 1), 200)
+        );
+        assert_eq!(
+            (header(&requests[5]), value(&requests[5])),
+            ((0x2F, 0x60C2, 2), (-5i8) as u8 as u32)
+        );
         // RPDO1: invalid, type 1, clear, 6040h/16, 607Ah/32, two entries, valid.
-        let rpdo: Vec<(u16, u8, u32)> = requests[4..11]
+        let rpdo: Vec<(u16, u8, u32)> = requests[6..13]
             .iter()
             .map(|r| (header(r).1, r[3], value(r)))
             .collect();
@@ -1515,8 +1600,8 @@ mod tests {
                 (0x1400, 1, 0x0000_0201),
             ]
         );
-        assert_eq!(value(&requests[17]), 0x4000_0181);
-        assert_eq!(requests.len(), 18);
+        assert_eq!(value(&requests[19]), 0x4000_0181);
+        assert_eq!(requests.len(), 20);
         // NMT start to each node after the last answer, and the first SYNC with it.
         let tail: Vec<CanFrame> = bench.sent.iter().rev().take(4).rev().map(|s| s.1).collect();
         assert_eq!(
@@ -2176,11 +2261,20 @@ mod tests {
         for (config, message) in cases {
             assert_eq!(Session::new(config, sp()).unwrap_err().to_string(), message);
         }
-        let mut zero = sp();
-        zero.period = Duration::ZERO;
-        assert_eq!(
-            Session::new(config(), zero).unwrap_err().to_string(),
-            "CAN session: setpoints.period: a cycle of 0 s"
-        );
+        // 60C2h holds a cycle as at most 255 × 10^index s, whole microseconds.
+        for (period, shown) in [
+            (Duration::ZERO, "0ns"),
+            (Duration::from_micros(2561), "2.561ms"),
+        ] {
+            let mut odd = sp();
+            odd.period = period;
+            assert_eq!(
+                Session::new(config(), odd).unwrap_err().to_string(),
+                format!(
+                    "CAN session: setpoints.period: {shown} is not a cycle 60C2h holds \
+                     (value ≤ 255 × 10^index s, whole µs)"
+                )
+            );
+        }
     }
 }

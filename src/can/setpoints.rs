@@ -25,10 +25,17 @@
 //! slower ([`Move::slowed`]). Acceleration is not limited: the drives see the planned
 //! velocity steps at every junction.
 //!
+//! Each move then takes a whole number of cycles: its time is rounded up to the next
+//! whole cycle (a move shorter than a cycle takes one). So every junction of the planned
+//! polyline is a set-point, and the drives, which go straight from one set-point to the
+//! next, follow the polyline itself rather than chords cut across its corners. (Sampled
+//! at fixed times instead, a cycle straddling a junction of turn θ cuts it by up to
+//! v·T·θ/4, on top of the polyline's own error and outside the planner's budget.) The
+//! job runs at most a cycle a move slower; a slower pass changes the groove only through
+//! the insert cusp, which shrinks with the workpiece's speed.
+//!
 //! The moves follow each other without gaps, and the set-point of cycle *k* (1-based) is
-//! the path's position at time *k*·T. The last cycle is the first at or past the path's
-//! end and holds its final position, so the set-points span the program's duration
-//! rounded up to whole cycles.
+//! the path's position at time *k*·T. The last cycle is the path's end.
 //!
 //! # Counts and their width
 //!
@@ -208,11 +215,12 @@ pub struct Move {
     pub from: [i64; 3],
     /// End, counts.
     pub to: [i64; 3],
-    /// When it starts, seconds from the first cycle's start.
+    /// When it starts, seconds from the first cycle's start: a whole number of cycles.
     pub start: f64,
-    /// How long it takes, seconds (above zero).
+    /// How long it takes, seconds: a whole number of cycles, at least one.
     pub duration: f64,
-    /// Lengthened beyond the programmed time so that no axis exceeds its max rate.
+    /// Lengthened beyond the programmed time so that no axis exceeds its max rate (the
+    /// rounding up to whole cycles aside).
     pub slowed: bool,
 }
 
@@ -236,7 +244,8 @@ pub struct SetPoints {
     pub period: Duration,
     /// Where the path starts, counts (the drives' positions before the first cycle).
     pub start: [i64; 3],
-    /// `points[k]`: the targets for cycle k + 1, the path's position at (k + 1)·period.
+    /// `points[k]`: the targets for cycle k + 1, the path's position at (k + 1)·period; the
+    /// last is the path's end.
     pub points: Vec<[i64; 3]>,
     /// The straight moves sampled, in order, with their timing.
     pub moves: Vec<Move>,
@@ -250,7 +259,7 @@ impl SetPoints {
         self.points.last().copied().unwrap_or(self.start)
     }
 
-    /// The path's duration, seconds (the cycles span it rounded up to whole cycles).
+    /// The path's duration, seconds: its cycles.
     pub fn duration(&self) -> f64 {
         self.moves.last().map_or(0.0, |m| m.start + m.duration)
     }
@@ -300,7 +309,12 @@ pub fn sample(
     let rate = config.max_rate.map(|r| r / 60.0);
     let mut moves = Vec::new();
     let mut marks = Vec::new();
-    let mut time = 0.0;
+    let period = config.period.as_secs_f64();
+    // Whole cycles a move of `seconds` takes; a hair over a whole number is rounding.
+    let cycles_of = |seconds: f64| ((seconds / period - 1e-9).ceil() as usize).max(1);
+    // Cycles so far, and each move's first cycle and number of cycles.
+    let mut cycle = 0;
+    let mut spans: Vec<(usize, usize)> = Vec::new();
     let mut position = start_counts;
     for step in program.steps(start) {
         let block = step.index;
@@ -318,24 +332,25 @@ pub fn sample(
                         "spindle speed {rpm} rpm is not above zero"
                     )));
                 }
-                marks.push((block, time, Some(rpm)));
+                marks.push((block, cycle, Some(rpm)));
                 if !spin_up.is_zero() {
-                    let duration = spin_up.as_secs_f64();
+                    let n = cycles_of(spin_up.as_secs_f64());
                     moves.push(Move {
                         block,
                         from: position,
                         to: position,
-                        start: time,
-                        duration,
+                        start: cycle as f64 * period,
+                        duration: n as f64 * period,
                         slowed: false,
                     });
-                    time += duration;
+                    spans.push((cycle, n));
+                    cycle += n;
                 }
                 continue;
             }
             Block::SpindleOff => {
                 config.spin_up.ok_or(SampleError::Spindle { block })?;
-                marks.push((block, time, None));
+                marks.push((block, cycle, None));
                 continue;
             }
             Block::Rapid { .. } => Timing::Rapid,
@@ -376,43 +391,35 @@ pub fn sample(
         let slowed = wanted.is_some_and(|w| fastest > w * (1.0 + 1e-9));
         let end = counts(config, Some(block), to)?;
         if duration > 0.0 {
+            let n = cycles_of(duration);
             moves.push(Move {
                 block,
                 from: position,
                 to: end,
-                start: time,
-                duration,
+                start: cycle as f64 * period,
+                duration: n as f64 * period,
                 slowed,
             });
-            time += duration;
+            spans.push((cycle, n));
+            cycle += n;
         }
         position = end;
     }
-    let period = config.period.as_secs_f64();
-    // Whole cycles up to the end; a path end a hair past a cycle boundary is rounding.
-    let cycles = (time / period - 1e-9).ceil().max(0.0) as usize;
-    let mut points = Vec::with_capacity(cycles);
-    let mut at = 0;
-    for k in 1..=cycles {
-        let t = k as f64 * period;
-        while at < moves.len() && t >= moves[at].start + moves[at].duration {
-            at += 1;
+    let mut points = Vec::with_capacity(cycle);
+    for (m, &(first, n)) in moves.iter().zip(&spans) {
+        for k in 1..=n {
+            let f = k as f64 / n as f64;
+            points.push(std::array::from_fn(|i| {
+                m.from[i] + ((m.to[i] - m.from[i]) as f64 * f).round() as i64
+            }));
         }
-        points.push(match moves.get(at) {
-            Some(m) => {
-                let f = (t - m.start) / m.duration;
-                std::array::from_fn(|i| {
-                    m.from[i] + ((m.to[i] - m.from[i]) as f64 * f).round() as i64
-                })
-            }
-            None => position,
-        });
+        debug_assert_eq!(points.len(), first + n);
     }
     let marks = marks
         .into_iter()
-        .map(|(block, time, spindle)| Mark {
+        .map(|(block, cycle, spindle)| Mark {
             block,
-            cycle: ((time / period - 1e-9).ceil().max(0.0) as usize).min(cycles),
+            cycle,
             spindle,
         })
         .collect();
@@ -516,8 +523,13 @@ mod tests {
         }
     }
 
-    fn expected_duration(program: &Program, start: Pose, config: &SampleConfig) -> f64 {
-        program.steps(start).map(|s| seconds(&s, config)).sum()
+    /// The same in whole cycles: the next whole cycle up, at least one for any motion.
+    fn cycle_seconds(step: &Step<'_>, config: &SampleConfig) -> f64 {
+        let period = config.period.as_secs_f64();
+        match seconds(step, config) {
+            0.0 => 0.0,
+            s => ((s / period - 1e-9).ceil()).max(1.0) * period,
+        }
     }
 
     /// A short whirling-like program: rapid in, M3, plunge, linked moves, retract, M5.
@@ -557,11 +569,18 @@ mod tests {
         for step in program.steps(start) {
             let from = Axis::ALL.map(|a| step.from.get(a).unwrap());
             let to = Axis::ALL.map(|a| step.to.get(a).unwrap());
-            let d = seconds(&step, &config);
+            let d = cycle_seconds(&step, &config);
             if d > 0.0 {
                 segments.push((from, to, t, t + d));
             }
             t += d;
+        }
+        // Every junction is a set-point, exactly: the drives turn the polyline's corners
+        // rather than cutting across them.
+        for &(_, to, _, t1) in &segments {
+            let cycle = (t1 / period).round() as usize;
+            let exact: [i64; 3] = std::array::from_fn(|i| (to[i] * scale[i]).round() as i64);
+            assert_eq!(sp.points[cycle - 1], exact, "the junction at {t1} s");
         }
         for (k, point) in sp.points.iter().enumerate() {
             let time = (k + 1) as f64 * period;
@@ -605,32 +624,38 @@ mod tests {
             }
             previous = *point;
         }
-        // The rapids reach the limits (X and Z: 2000 counts a 4 ms cycle at 50 mm/s).
-        for i in 0..2 {
-            assert!(
-                fastest[i] as f64 >= limit[i] - 1.0,
-                "axis {i}: {}",
-                fastest[i]
-            );
-        }
+        // The rapids reach the limits, up to whole cycles (2000 counts a 4 ms cycle at
+        // 50 mm/s): the retract's 30 000 counts of X are exactly 15 cycles; the rapid in's
+        // 134 500 counts of Z need 67.25, so take 68 of 1978.
+        assert!(fastest[0] as f64 >= limit[0] - 1.0, "X: {}", fastest[0]);
+        assert!((fastest[1] - 134_500 / 68).abs() <= 1, "Z: {}", fastest[1]);
     }
 
     #[test]
-    fn the_cycles_span_the_programs_duration_within_one_cycle() {
+    fn each_move_takes_its_time_rounded_up_to_whole_cycles() {
         for period_ms in [2, 4, 5, 10] {
             let config = SampleConfig {
                 period: period_ms * MS,
                 ..config()
             };
+            let period = config.period.as_secs_f64();
             let start = Pose::known(0.0, 0.0, 0.0);
             let sp = sample(&job(), start, &config).unwrap();
-            let expected = expected_duration(&job(), start, &config);
-            assert!((sp.duration() - expected).abs() < 1e-9);
-            let spanned = sp.points.len() as f64 * config.period.as_secs_f64();
+            let program = job();
+            let steps: Vec<Step<'_>> = program.steps(start).collect();
+            let programmed: f64 = steps.iter().map(|s| seconds(s, &config)).sum();
+            let whole: f64 = steps.iter().map(|s| cycle_seconds(s, &config)).sum();
+            assert!((sp.duration() - whole).abs() < 1e-9);
+            assert!((sp.points.len() as f64 * period - whole).abs() < 1e-9);
+            // At most a cycle a move slower than programmed.
             assert!(
-                spanned >= expected - 1e-9 && spanned < expected + config.period.as_secs_f64(),
-                "{period_ms} ms: {spanned} s for {expected} s"
+                whole >= programmed - 1e-9 && whole < programmed + sp.moves.len() as f64 * period,
+                "{period_ms} ms: {whole} s for {programmed} s"
             );
+            for m in &sp.moves {
+                let cycles = m.duration / period;
+                assert!((cycles - cycles.round()).abs() < 1e-9 && cycles >= 1.0 - 1e-9);
+            }
             // The last set-point is the program's end, exactly.
             let c_end = (12.0 * config.counts_per_unit[2]).round() as i64;
             assert_eq!(sp.end(), [0, -134_000, c_end]);
@@ -730,9 +755,9 @@ mod tests {
     fn spindle_blocks_are_marks_with_a_spin_up_hold_or_refused() {
         let config = config();
         let sp = sample(&job(), Pose::known(0.0, 0.0, 0.0), &config).unwrap();
-        // The rapid in takes 13.45 mm / 50 mm/s = 0.269 s: M3 is due once cycle 68
-        // (0.272 s, the first at or past it) is sent, and the motion holds 500 ms from
-        // 0.269 s.
+        // The rapid in takes 13.45 mm / 50 mm/s = 0.269 s, 68 cycles of 4 ms (0.272 s):
+        // M3 is due once cycle 68 is sent, and the motion holds 500 ms, 125 cycles, from
+        // there.
         assert_eq!(
             sp.marks[0],
             Mark {
@@ -750,7 +775,7 @@ mod tests {
                 (1.25 * config.counts_per_unit[2]).round() as i64
             ]
         );
-        let hold_end = ((0.269 + 0.5) / 0.004_f64).floor() as usize;
+        let hold_end = 68 + 125;
         assert!(sp.points[67..hold_end].iter().all(|p| *p == held));
         assert_ne!(sp.points[66], held);
         assert_ne!(sp.points[hold_end], held);

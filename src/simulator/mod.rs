@@ -1,6 +1,8 @@
 //! The simulated controller (crate `whirl-sim`) as whirl embeds it: its machine description
-//! from a whirl machine profile, and its Δ guard ([`guard`]) from a job.
+//! from a whirl machine profile, its Δ guard ([`guard`]) from a job, and the simulated
+//! drives' cycles merged into moves for the log ([`cycles`]).
 
+pub mod cycles;
 pub mod guard;
 
 use crate::machine::{MachineProfile, NumberType};

@@ -12,6 +12,7 @@
 //!   (tokio-serial), or over any byte stream ([`serial::stream`]), so tests and the dry run
 //!   can use an in-memory pipe or a pseudo-terminal.
 
+pub mod can;
 pub mod modbus;
 pub mod serial;
 

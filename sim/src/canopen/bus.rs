@@ -8,8 +8,9 @@
 //! Each SYNC is one control cycle of all three drives. After the drives have taken it,
 //! their positions (6064h, in counts; X and Z per mm, C per degree) become one
 //! [`ExecutedBlock`]: a straight move from where the previous SYNC left them (power-up
-//! for the first) to where they are now, spanning the time from that SYNC to this one, of
-//! kind inverse time (a duration, not a feed), its `line` the SYNC's ordinal (from 1) and
+//! for the first) to where they are now, spanning the time from that SYNC to this one
+//! (one interpolation period with the clock locked to SYNC; see [Time](#time)), of kind
+//! inverse time (a duration, not a feed), its `line` the SYNC's ordinal (from 1) and
 //! no N word. Its `target` is the drives' target positions (607Ah) and `completed` says
 //! whether they got there; a cycle cut short shows one phase at the speed of the distance
 //! actually moved. Replayed in order, the blocks are the path the drives followed, at the
@@ -34,10 +35,26 @@
 //! the other drives fault with EMCY [`EMCY_CHAIN`], so a master hears the cause first.
 //!
 //! [`Bus::pull_cable`] cuts one drive off the bus, the way a pulled connector does: it
-//! neither hears nor is heard, its heartbeat included.
+//! neither hears nor is heard, its heartbeat included. [`Bus::external_fault`] faults one
+//! drive as its own protection would (an over-voltage, a motor too hot), for a master's
+//! fault handling to be tried.
+//!
+//! # Time
+//!
+//! By default the bus's clock is the caller's: [`Bus::advance`] moves it and a SYNC takes
+//! no time, so a cycle spans from the previous SYNC to this one. Real CSP drives lock
+//! their control cycle to the master's SYNC instead, and a master that runs faster or
+//! slower than the wall clock (a dry run in lockstep) still sees each cycle take one
+//! period. [`Bus::lock_clock_to_sync`] does that: each SYNC from the host first lets the
+//! drives' interpolation time period (60C2h) pass, heartbeats included, then reaches the
+//! drives, and its cycle spans exactly that period, ending at the SYNC. Between SYNCs the
+//! caller may still [`Bus::advance`] (a master that stopped sending them leaves the drives
+//! standing in wall time); that time shows as a gap in which nothing moves. The period is
+//! X's: a master writes all three alike, and if it does not, the bus runs at X's.
 
 use std::time::Duration;
 
+use serde::Serialize;
 use thiserror::Error;
 
 use super::drive::{DriveConfigError, EMCY_POSITION_LIMIT};
@@ -122,8 +139,10 @@ pub enum BusError {
     },
 }
 
-/// What happened on the bus.
-#[derive(Debug, Clone, PartialEq)]
+/// What happened on the bus. In a log, `event` names the variant, as in the controller's
+/// events; a drive's event carries its own `kind`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "event", rename_all = "snake_case")]
 pub enum BusEvent {
     /// A SYNC's cycle, as a straight move (see the module docs).
     Executed(ExecutedBlock),
@@ -132,7 +151,9 @@ pub enum BusEvent {
     Drive {
         /// The drive's node.
         node: u8,
-        /// What happened.
+        /// What happened. Flattened, it has no key of its own; the name only keeps serde
+        /// from taking the field for a second `event` beside the tag.
+        #[serde(flatten, rename = "drive_event")]
         event: DriveEvent,
     },
     /// The guard found the executed motion out of bounds; every drive faulted.
@@ -158,11 +179,18 @@ pub struct Bus {
     /// Rounds of routing until the chain opens after a limit fault (its emergency goes on
     /// the bus in the round after the fault); 0: nothing pending.
     chain: u8,
+    /// Each SYNC from the host lets the interpolation period pass (see the module docs).
+    sync_clock: bool,
     syncs: u64,
     /// Positions (unwrapped counts) and time at the last SYNC.
     positions: [i64; 3],
     last_sync: f64,
     events: Vec<BusEvent>,
+}
+
+/// A SYNC: nothing, or a one-byte counter, on 080h.
+fn is_sync(frame: &Frame) -> bool {
+    frame.id == 0x080 && !frame.extended && !frame.remote && frame.data.len() <= 1
 }
 
 /// The i64 nearest `near` whose low 32 bits are `wire`.
@@ -197,6 +225,7 @@ impl Bus {
             guard: None,
             breached: false,
             chain: 0,
+            sync_clock: false,
             syncs: 0,
             last_sync: 0.0,
             events: Vec::new(),
@@ -229,16 +258,42 @@ impl Bus {
         Ok(())
     }
 
+    /// Runs the clock on the host's SYNCs from now on (see the module docs).
+    pub fn lock_clock_to_sync(&mut self) {
+        self.sync_clock = true;
+    }
+
+    /// SYNCs the host has sent since power-up.
+    pub fn syncs(&self) -> u64 {
+        self.syncs
+    }
+
     /// Cuts the drive on `node` off the bus (a pulled cable): nothing reaches it, nothing
     /// of it reaches anyone. Returns false if no drive is on that node.
     pub fn pull_cable(&mut self, node: u8) -> bool {
-        match self.nodes.iter().position(|n| *n == node) {
-            Some(k) => {
-                self.pulled[k] = true;
-                true
-            }
-            None => false,
-        }
+        let Some(k) = self.slot(node) else {
+            return false;
+        };
+        self.pulled[k] = true;
+        true
+    }
+
+    /// Faults the drive on `node` as a fault of its own would: Fault, EMCY `code` on the
+    /// bus at once (reaching the host if the channel is open and the cable in). Returns
+    /// false if no drive is on that node. A drive already in Fault keeps its first fault.
+    pub fn external_fault(&mut self, node: u8, code: u16) -> bool {
+        let Some(k) = self.slot(node) else {
+            return false;
+        };
+        self.drives[k].external_fault(code);
+        self.collect_drive_events();
+        self.route();
+        true
+    }
+
+    /// Where the drive on `node` is in `drives`.
+    fn slot(&self, node: u8) -> Option<usize> {
+        self.nodes.iter().position(|n| *n == node)
     }
 
     /// The drives, X, Z, C.
@@ -260,12 +315,17 @@ impl Bus {
 
     /// Lets `dt` pass: heartbeats fall due (and reach the adapter at the end of `dt`).
     pub fn advance(&mut self, dt: Duration) {
+        self.pass(dt);
+        self.route();
+    }
+
+    /// Lets `dt` pass without moving the frames it produced.
+    fn pass(&mut self, dt: Duration) {
         self.now += dt;
         self.adapter.advance(dt);
         for drive in &mut self.drives {
             drive.advance(dt);
         }
-        self.route();
     }
 
     /// Bytes for the host since the last call.
@@ -298,6 +358,8 @@ impl Bus {
                 return;
             }
             for (sender, frame) in on_bus {
+                let sync = sender.is_none() && is_sync(&frame);
+                let cycle_start = sync.then(|| self.sync_arrives());
                 if sender.is_some() {
                     self.adapter.deliver(&frame);
                 }
@@ -307,9 +369,8 @@ impl Bus {
                     }
                 }
                 self.collect_drive_events();
-                let sync = frame.id == 0x080 && !frame.extended && !frame.remote;
-                if sender.is_none() && sync && frame.data.len() <= 1 {
-                    self.cycle();
+                if let Some(start) = cycle_start {
+                    self.cycle(start);
                 }
             }
             if self.chain > 0 {
@@ -344,12 +405,24 @@ impl Bus {
         }
     }
 
+    /// A SYNC from the host is about to reach the drives: with the clock locked, X's
+    /// interpolation period passes first. Returns when the cycle it starts began, s.
+    fn sync_arrives(&mut self) -> f64 {
+        if !self.sync_clock {
+            return self.last_sync;
+        }
+        let period = self.drives[0].interpolation_period();
+        self.pass(period);
+        (self.now - period).as_secs_f64()
+    }
+
     fn units(&self, counts: [i64; 3]) -> Position {
         Position::from_array(std::array::from_fn(|k| counts[k] as f64 / self.scale[k]))
     }
 
-    /// A SYNC went by: the cycle as an executed block, shown to the guard.
-    fn cycle(&mut self) {
+    /// A SYNC went by, its cycle begun at `start`: the cycle as an executed block, shown to
+    /// the guard.
+    fn cycle(&mut self, start: f64) {
         self.syncs += 1;
         let actual: [i64; 3] =
             std::array::from_fn(|k| unwrap_near(self.drives[k].position(), self.positions[k]));
@@ -361,7 +434,7 @@ impl Bus {
             .map(|k| (to.to_array()[k] - from.to_array()[k]).powi(2))
             .sum::<f64>()
             .sqrt();
-        let span = now - self.last_sync;
+        let span = now - start;
         let block = ExecutedBlock {
             line: self.syncs,
             n: None,
@@ -369,11 +442,11 @@ impl Bus {
             from,
             target: self.units(target),
             to,
-            start_time: self.last_sync,
+            start_time: start,
             end_time: now,
             completed: target == actual,
             phases: vec![Phase {
-                start: self.last_sync,
+                start,
                 distance: 0.0,
                 speed: if span > 0.0 { moved / span } else { 0.0 },
                 accel: 0.0,
@@ -771,6 +844,156 @@ mod tests {
             crate::canopen::NmtState::PreOperational
         );
         assert_eq!(bus.now(), 20 * MS);
+    }
+
+    /// The SDO download of 60C2h on every node: `value` × 10^`index` s.
+    fn set_period(bus: &mut Bus, value: u8, index: i8) {
+        for node in 1..=3 {
+            for (sub, byte) in [(1, value), (2, index as u8)] {
+                let answer = host(
+                    bus,
+                    &t(0x600 + node, &[0x2F, 0xC2, 0x60, sub, byte, 0, 0, 0]),
+                );
+                let ok = t(0x580 + node, &[0x60, 0xC2, 0x60, sub, 0, 0, 0, 0]);
+                assert_eq!(answer, format!("z\r{ok}"));
+            }
+        }
+    }
+
+    #[test]
+    fn a_clock_locked_to_sync_runs_one_period_a_cycle() {
+        let mut bus = enabled(config());
+        set_period(&mut bus, 4, -3);
+        bus.lock_clock_to_sync();
+        let (t0, syncs) = (bus.now(), bus.syncs());
+        let period = 4 * MS;
+        // No advance between SYNCs: each SYNC is the time, 1000 counts (0.1 mm) of X each.
+        for k in 1..=10 {
+            let answer = host(&mut bus, &(rpdo(1, 0x0F, 1000 * k) + &t(0x080, &[])));
+            assert!(answer.contains("t181"), "{answer}");
+        }
+        assert_eq!(bus.now(), t0 + 10 * period);
+        assert_eq!(bus.syncs(), syncs + 10);
+        let events = bus.take_events();
+        let blocks = executed(&events);
+        assert_eq!(blocks.len(), 10);
+        for (k, block) in (1..).zip(&blocks) {
+            assert_eq!(block.start_time, (t0 + (k - 1) * period).as_secs_f64());
+            assert_eq!(block.end_time, (t0 + k * period).as_secs_f64());
+            assert_eq!(block.to.x, f64::from(1000 * k) / 10_000.0);
+        }
+        // A master that paused: the drives stood still, and the next cycle still takes one
+        // period, ending at the SYNC.
+        bus.advance(Duration::from_secs(1));
+        host(&mut bus, &(rpdo(1, 0x0F, 11_000) + &t(0x080, &[])));
+        let events = bus.take_events();
+        let block = executed(&events)[0];
+        let end = t0 + 10 * period + Duration::from_secs(1) + period;
+        assert_eq!(bus.now(), end);
+        assert_eq!(block.start_time, (end - period).as_secs_f64());
+        assert_eq!(block.end_time, end.as_secs_f64());
+        assert_eq!(block.from.x, 1.0);
+        // A drive on another period does not change the bus's: X's rules.
+        let answer = host(&mut bus, &t(0x602, &[0x2F, 0xC2, 0x60, 1, 2, 0, 0, 0]));
+        assert!(answer.ends_with(&t(0x582, &[0x60, 0xC2, 0x60, 1, 0, 0, 0, 0])));
+        host(&mut bus, &t(0x080, &[]));
+        assert_eq!(bus.now(), end + period);
+    }
+
+    #[test]
+    fn heartbeats_fall_due_in_sync_time() {
+        let mut bus = Bus::new(config()).unwrap();
+        host(&mut bus, "S8\rO\r");
+        // 1017h = 50 ms, a 4 ms period: a heartbeat every 12.5 SYNCs.
+        for node in 1..=3 {
+            host(
+                &mut bus,
+                &t(0x600 + node, &[0x2B, 0x17, 0x10, 0, 50, 0, 0, 0]),
+            );
+        }
+        set_period(&mut bus, 4, -3);
+        bus.lock_clock_to_sync();
+        let mut heard = String::new();
+        for _ in 0..100 {
+            heard += &host(&mut bus, &t(0x080, &[]));
+        }
+        // 400 ms: due at 50, 100, …, 400 ms, eight each, Pre-operational (7Fh).
+        assert_eq!(bus.now(), 400 * MS);
+        for node in 1..=3 {
+            let beat = t(0x700 + node, &[0x7F]);
+            assert_eq!(heard.matches(&beat).count(), 8, "node {node}: {heard}");
+        }
+    }
+
+    #[test]
+    fn an_external_fault_faults_one_drive_with_its_emcy() {
+        let mut bus = enabled(config());
+        // CiA 402's DC link over-voltage, 3210h, on Z: EMCY on 082h with error register
+        // bit 0 (generic), at once.
+        assert!(bus.external_fault(2, 0x3210));
+        assert_eq!(
+            String::from_utf8(bus.take_output()).unwrap(),
+            t(0x082, &[0x10, 0x32, 0x01, 0, 0, 0, 0, 0])
+        );
+        let states = bus.drives().each_ref().map(|d| d.power_state());
+        use PowerState::{Fault, OperationEnabled};
+        assert_eq!(states, [OperationEnabled, Fault, OperationEnabled]);
+        assert!(bus.take_events().contains(&BusEvent::Drive {
+            node: 2,
+            event: DriveEvent::Fault {
+                time: bus.now(),
+                code: 0x3210
+            }
+        }));
+        // No drive there; a drive off the bus faults unheard.
+        assert!(!bus.external_fault(9, 0x3210));
+        assert!(bus.pull_cable(3));
+        assert!(bus.external_fault(3, 0x3210));
+        assert_eq!(bus.drives()[2].power_state(), Fault);
+        assert!(bus.take_output().is_empty());
+    }
+
+    #[test]
+    fn events_log_as_json_with_seconds() {
+        let fault = BusEvent::Drive {
+            node: 2,
+            event: DriveEvent::Fault {
+                time: 1500 * MS,
+                code: 0x3210,
+            },
+        };
+        assert_eq!(
+            serde_json::to_string(&fault).unwrap(),
+            r#"{"event":"drive","node":2,"kind":"fault","time":1.5,"code":12816}"#
+        );
+        let power = BusEvent::Drive {
+            node: 1,
+            event: DriveEvent::Power {
+                time: Duration::ZERO,
+                state: PowerState::SwitchOnDisabled,
+            },
+        };
+        assert_eq!(
+            serde_json::to_string(&power).unwrap(),
+            r#"{"event":"drive","node":1,"kind":"power","time":0.0,"state":"SwitchOnDisabled"}"#
+        );
+        let breach = BusEvent::Breach {
+            time: 0.25,
+            breach: Breach {
+                message: "off".into(),
+            },
+        };
+        assert_eq!(
+            serde_json::to_string(&breach).unwrap(),
+            r#"{"event":"breach","time":0.25,"breach":{"message":"off"}}"#
+        );
+        let mut bus = enabled(config());
+        cycle(&mut bus, 0x0F, [1000, 0, 0], 4 * MS);
+        let events = bus.take_events();
+        let json = serde_json::to_value(executed(&events)[0]).unwrap();
+        let logged = serde_json::to_value(&events[events.len() - 1]).unwrap();
+        assert_eq!(logged["event"], "executed");
+        assert_eq!(logged["to"], json["to"]);
     }
 
     #[test]

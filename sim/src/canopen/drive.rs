@@ -47,6 +47,12 @@
 //!   drive follows the target), bit 13 after a following error.
 //! - Modes (6060h, shown in 6061h): 0 (none) and 8 (cyclic synchronous position); others
 //!   abort 0x06090030.
+//! - Interpolation time period (60C2h): sub-index 1 the value (UNSIGNED8), 2 the index
+//!   (INTEGER8), the period being value × 10^index s; 1 ms at power-up. The master writes
+//!   its SYNC period here, and a bus locked to SYNC ([`super::Bus::lock_clock_to_sync`])
+//!   runs one period a cycle. A value of 0 (no cycle at all) and an index outside −6…0
+//!   (below a microsecond, above the unit) abort 0x06090030: CiA 402 leaves the range to
+//!   the device, and a drive's control cycle is neither zero nor finer than 1 µs.
 //! - Each SYNC is one control cycle: synchronous RPDOs are applied, then in CSP with
 //!   operation enabled the actual position (6064h) moves towards the target (607Ah) by at
 //!   most [`DriveConfig::max_step`] counts, then the following error is checked, then the
@@ -66,6 +72,7 @@
 
 use std::time::Duration;
 
+use serde::{Serialize, Serializer};
 use thiserror::Error;
 
 use super::Frame;
@@ -93,6 +100,10 @@ pub const EMCY_PDO_LENGTH: u16 = 0x8210;
 /// EMCY code of a target outside the software position limits: CiA 402's "reference
 /// limit" of the positioning controller.
 pub const EMCY_POSITION_LIMIT: u16 = 0x8612;
+/// 60C2h at power-up: value 1, index −3, one millisecond.
+const INTERPOLATION_POWER_ON: (u8, i8) = (1, -3);
+/// The interpolation time indices the drive takes: 1 µs to 1 s units.
+const INTERPOLATION_INDICES: std::ops::RangeInclusive<i8> = -6..=0;
 
 /// How a drive is built.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -136,7 +147,7 @@ pub enum DriveConfigError {
 }
 
 /// The NMT states a drive can be in after boot-up.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub enum NmtState {
     /// Heartbeat byte 0x7F.
     PreOperational,
@@ -157,7 +168,7 @@ impl NmtState {
 }
 
 /// CiA 402 power drive system states.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub enum PowerState {
     /// Statusword `x0xx 0000`.
     NotReadyToSwitchOn,
@@ -177,12 +188,15 @@ pub enum PowerState {
     Fault,
 }
 
-/// What happened in the drive, for logs and tests.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// What happened in the drive, for logs and tests. In a log, `kind` names the variant
+/// and times are seconds, as in the controller's events.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
 pub enum DriveEvent {
     /// The NMT state changed (boot-up included).
     Nmt {
         /// Simulated time.
+        #[serde(serialize_with = "seconds")]
         time: Duration,
         /// The new state.
         state: NmtState,
@@ -190,6 +204,7 @@ pub enum DriveEvent {
     /// The power state changed.
     Power {
         /// Simulated time.
+        #[serde(serialize_with = "seconds")]
         time: Duration,
         /// The new state.
         state: PowerState,
@@ -197,6 +212,7 @@ pub enum DriveEvent {
     /// A fault, with its EMCY code.
     Fault {
         /// Simulated time.
+        #[serde(serialize_with = "seconds")]
         time: Duration,
         /// The EMCY error code.
         code: u16,
@@ -204,12 +220,18 @@ pub enum DriveEvent {
     /// A control cycle (SYNC) in cyclic synchronous position mode with operation enabled.
     Cycle {
         /// Simulated time.
+        #[serde(serialize_with = "seconds")]
         time: Duration,
         /// 607Ah.
         target: i32,
         /// 6064h after the cycle.
         actual: i32,
     },
+}
+
+/// A time as seconds, the unit of every time in the simulator's logs.
+fn seconds<S: Serializer>(time: &Duration, serializer: S) -> Result<S::Ok, S::Error> {
+    serializer.serialize_f64(time.as_secs_f64())
 }
 
 /// One PDO's communication and mapping objects, and its traffic state.
@@ -284,6 +306,8 @@ pub struct Drive {
     window: u32,
     following_error: bool,
     error_register: u8,
+    /// 60C2h: (value, index).
+    interpolation: (u8, i8),
     rpdo: [Pdo; 4],
     tpdo: [Pdo; 4],
     output: Vec<Frame>,
@@ -310,6 +334,7 @@ impl Drive {
             window: config.following_error_window,
             following_error: false,
             error_register: 0,
+            interpolation: INTERPOLATION_POWER_ON,
             rpdo,
             tpdo,
             output: Vec::new(),
@@ -344,6 +369,15 @@ impl Drive {
     /// Simulated time.
     pub fn now(&self) -> Duration {
         self.now
+    }
+
+    /// The interpolation time period (60C2h): value × 10^index seconds, the master's SYNC
+    /// period as it told the drive.
+    pub fn interpolation_period(&self) -> Duration {
+        let (value, index) = self.interpolation;
+        // −6 ≤ index ≤ 0: a whole number of nanoseconds.
+        let nanos_per_unit = 10u64.pow((9 + i32::from(index)) as u32);
+        Duration::from_nanos(u64::from(value) * nanos_per_unit)
     }
 
     /// A fault from outside the CANopen interface (a machine's safety chain, a
@@ -464,6 +498,7 @@ impl Drive {
         self.window = self.config.following_error_window;
         self.following_error = false;
         self.error_register = 0;
+        self.interpolation = INTERPOLATION_POWER_ON;
         self.set_power(PowerState::SwitchOnDisabled);
     }
 
@@ -739,6 +774,20 @@ impl Drive {
             0x6064 => var(4, false, self.actual as u32),
             0x6065 => var(4, true, self.window),
             0x607A => var(4, true, self.target as u32),
+            0x60C2 => {
+                let (value, index) = self.interpolation;
+                let (writable, value) = match sub {
+                    0 => (false, 2),
+                    1 => (true, value.into()),
+                    2 => (true, u32::from(index as u8)),
+                    _ => return Err(abort::NO_SUB),
+                };
+                Ok(Entry {
+                    size: 1,
+                    writable,
+                    value,
+                })
+            }
             0x1400..=0x1403 | 0x1800..=0x1803 => {
                 let pdo = self.pdo(index);
                 let (size, writable, value) = match sub {
@@ -806,9 +855,27 @@ impl Drive {
             },
             0x6065 => self.window = value,
             0x607A => self.target = value as i32,
+            0x60C2 => self.write_interpolation(sub, value as u8)?,
             0x1400..=0x1403 | 0x1800..=0x1803 => self.write_communication(index, sub, value)?,
             0x1600..=0x1603 | 0x1A00..=0x1A03 => self.write_mapping(index, sub, value)?,
             _ => return Err(abort::READ_ONLY),
+        }
+        Ok(())
+    }
+
+    /// 60C2h sub-index 1 (value) or 2 (index); see the module docs for what is refused.
+    fn write_interpolation(&mut self, sub: u8, byte: u8) -> Result<(), u32> {
+        if sub == 1 {
+            if byte == 0 {
+                return Err(abort::INVALID);
+            }
+            self.interpolation.0 = byte;
+        } else {
+            let index = byte as i8;
+            if !INTERPOLATION_INDICES.contains(&index) {
+                return Err(abort::INVALID);
+            }
+            self.interpolation.1 = index;
         }
         Ok(())
     }
@@ -1191,6 +1258,64 @@ mod tests {
         // 6060h takes one: the bytes after it do not matter.
         sdo(&mut drive, [0x22, 0x60, 0x60, 0, 8, 0xAA, 0xBB, 0xCC]);
         assert_eq!(read(&mut drive, 0x6061, 0), Ok((0x4F, 8)));
+    }
+
+    #[test]
+    fn the_interpolation_period_is_60c2h_value_times_ten_to_the_index() {
+        let mut drive = booted(DriveConfig::new(1));
+        // Sub-index 0 holds the highest sub-index, 2; power-up 1 × 10⁻³ s. One byte each:
+        // command 0x4F; the index −3 as INTEGER8 is FDh.
+        assert_eq!(read(&mut drive, 0x60C2, 0), Ok((0x4F, 2)));
+        assert_eq!(read(&mut drive, 0x60C2, 1), Ok((0x4F, 1)));
+        assert_eq!(read(&mut drive, 0x60C2, 2), Ok((0x4F, 0xFD)));
+        assert_eq!(drive.interpolation_period(), MS);
+        let cases = [
+            (4, -3, Duration::from_millis(4)),
+            (25, -4, Duration::from_micros(2500)),
+            (1, -6, Duration::from_micros(1)),
+            (255, 0, Duration::from_secs(255)),
+        ];
+        for (value, index, period) in cases {
+            write(&mut drive, 0x60C2, 1, value, 1).unwrap();
+            write(&mut drive, 0x60C2, 2, u32::from(index as u8), 1).unwrap();
+            assert_eq!(drive.interpolation_period(), period, "{value} × 10^{index}");
+            assert_eq!(read(&mut drive, 0x60C2, 1), Ok((0x4F, value)));
+            assert_eq!(
+                read(&mut drive, 0x60C2, 2),
+                Ok((0x4F, u32::from(index as u8)))
+            );
+        }
+    }
+
+    #[test]
+    fn impossible_interpolation_periods_are_refused() {
+        let mut drive = booted(DriveConfig::new(1));
+        write(&mut drive, 0x60C2, 1, 4, 1).unwrap();
+        assert_eq!(write(&mut drive, 0x60C2, 0, 3, 1), Err(0x0601_0002));
+        assert_eq!(read(&mut drive, 0x60C2, 3), Err(0x0609_0011));
+        assert_eq!(write(&mut drive, 0x60C2, 3, 0, 1), Err(0x0609_0011));
+        // Both are one byte.
+        assert_eq!(write(&mut drive, 0x60C2, 1, 4, 2), Err(0x0607_0012));
+        assert_eq!(write(&mut drive, 0x60C2, 2, 0xFD, 4), Err(0x0607_0012));
+        // No period at all, or units above a second or below a microsecond.
+        assert_eq!(write(&mut drive, 0x60C2, 1, 0, 1), Err(0x0609_0030));
+        for index in [1i8, 63, -7, -128] {
+            let byte = u32::from(index as u8);
+            assert_eq!(write(&mut drive, 0x60C2, 2, byte, 1), Err(0x0609_0030));
+        }
+        assert_eq!(drive.interpolation_period(), Duration::from_millis(4));
+    }
+
+    #[test]
+    fn reset_node_restores_the_interpolation_period() {
+        let mut drive = booted(DriveConfig::new(1));
+        write(&mut drive, 0x60C2, 1, 4, 1).unwrap();
+        // A profile object (6000h–9FFFh): reset communication keeps it, reset node does
+        // not.
+        drive.receive(&Frame::data(0x000, &[0x82, 0x01]));
+        assert_eq!(drive.interpolation_period(), Duration::from_millis(4));
+        drive.receive(&Frame::data(0x000, &[0x81, 0x01]));
+        assert_eq!(drive.interpolation_period(), MS);
     }
 
     #[test]

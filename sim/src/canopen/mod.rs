@@ -14,7 +14,9 @@
 //!   mode driven by RPDO1 on SYNC, TPDO1 back, following-error faults with EMCY.
 //! - [`bus`]: the whirling lathe's three drives (X, Z, C) behind an adapter as one unit,
 //!   each SYNC's cycle recorded as an executed move, with the Δ guard's seat, travel
-//!   limits and a cable to pull.
+//!   limits, a cable to pull, a fault to inject and a clock that SYNC can drive.
+//! - [`serve`]: the bus on a byte stream (a pseudo-terminal), clocked by the master's
+//!   SYNCs or the wall (the only async part).
 //!
 //! Wiring an adapter and drives is otherwise a loop the caller writes (the tests below
 //! do): host bytes into the adapter, the adapter's transmitted frames to every drive,
@@ -22,6 +24,7 @@
 
 pub mod bus;
 pub mod drive;
+pub mod serve;
 pub mod slcan;
 
 pub use bus::{Bus, BusConfig, BusError, BusEvent};

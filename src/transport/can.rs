@@ -1,0 +1,687 @@
+//! A planned program run on three CiA 402 drives over CAN: the sans-I/O [`Session`] driven
+//! through an slcan adapter on a serial line (tokio-serial) or a socketcan interface
+//! (socketcan's tokio socket).
+//!
+//! # The run
+//!
+//! 1. Open the link: for slcan, close the channel (an adapter left open by an earlier run
+//!    refuses a new bit rate), set the bit rate, open it; each command must be answered
+//!    with CR, not BEL.
+//! 2. Read each drive's position actual value (6064h) by expedited SDO. CSP set-points
+//!    begin where the drives stand ([`crate::can::setpoints`]), so the program is
+//!    sampled from there, with [`CanOptions::sample`]'s cycle, scales and rates.
+//! 3. Run the [`Session`]: its frames out, the bus's frames in, its events to the log,
+//!    until it has finished or stopped. Nothing else decides anything here.
+//!
+//! # Clocks
+//!
+//! [`CanClock::Wall`] is a machine's: the session is polled every millisecond of wall time
+//! and sends each cycle's RPDOs and SYNC when the period has passed (tokio's timer has a
+//! millisecond's grain, so a cycle's SYNC can be up to that late; the session reports a
+//! whole period late as [`Event::Late`] and slows the path rather than jump).
+//!
+//! [`CanClock::SyncLocked`] is for the simulator's drives, which lock their clock to the
+//! master's SYNC as CSP drives lock their control cycle to it (`whirl_sim::canopen`): time
+//! runs on the wall until the first SYNC, and from then on each cycle is one period of
+//! the session's time, begun as soon as the adapter has acknowledged the frames of all
+//! but the last eight cycles. A job of hours then runs as fast as the link and the
+//! simulator go, with both ends agreeing on every cycle. It needs the adapter's
+//! acknowledgements, so slcan only.
+//!
+//! Every frame is sent as the session gives it; the log gets the session's events (boot-up,
+//! configuration, enable, spindle marks, emergencies, the stop and its reason), not the
+//! cycles, which the simulator's execution record logs as moves.
+
+use crate::can::canopen::{NodeId, SdoClient, SdoDone};
+use crate::can::cia402::object;
+use crate::can::session::{Event, Phase, Session, SessionConfig, StopReason};
+use crate::can::setpoints::{sample, SampleConfig, SampleError, SetPoints};
+use crate::can::slcan::{Bitrate, Command, Decoder, Received};
+use crate::can::{CanFrame, CanId};
+use crate::exec_log::{self, ExecLog, LogError};
+use crate::gcode::program::{Pose, Program};
+use std::collections::VecDeque;
+use std::time::Duration;
+use thiserror::Error;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::time::Instant;
+use tokio_serial::SerialPortBuilderExt;
+
+/// Where the drives are.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CanLink {
+    /// An slcan (Lawicel) adapter on a serial line.
+    Slcan {
+        /// Its port (a device or a pseudo-terminal).
+        path: String,
+        /// The serial line's baud rate (a USB adapter ignores it).
+        baud: u32,
+        /// The CAN bus's bit rate.
+        bitrate: Bitrate,
+    },
+    /// A socketcan interface (`can0`), set up and brought up by the system.
+    SocketCan {
+        /// The interface's name.
+        interface: String,
+    },
+}
+
+impl CanLink {
+    /// `can-slcan` or `can`, as the log and the CLI name transports.
+    pub fn transport(&self) -> &'static str {
+        match self {
+            CanLink::Slcan { .. } => "can-slcan",
+            CanLink::SocketCan { .. } => "can",
+        }
+    }
+}
+
+impl std::fmt::Display for CanLink {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CanLink::Slcan {
+                path,
+                baud,
+                bitrate,
+            } => write!(
+                f,
+                "slcan adapter {path} ({baud} baud, CAN at {} kbit/s)",
+                bitrate.bits_per_second() / 1000
+            ),
+            CanLink::SocketCan { interface } => write!(f, "socketcan {interface}"),
+        }
+    }
+}
+
+/// How the session's time runs; see the module docs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CanClock {
+    /// The wall clock: a machine's drives.
+    Wall,
+    /// One period a cycle once the cycle runs, for drives whose clock is the SYNC (the
+    /// simulator's).
+    SyncLocked,
+}
+
+/// How [`stream_can`] runs.
+#[derive(Debug, Clone)]
+pub struct CanOptions {
+    /// The master's settings: nodes, heartbeat, windows, timeouts.
+    pub session: SessionConfig,
+    /// The cycle, the drives' scales and the axes' rates for sampling.
+    pub sample: SampleConfig,
+    /// The session's clock.
+    pub clock: CanClock,
+    /// Longest wait, wall time, for the adapter to answer a command and for a drive to
+    /// answer the position read.
+    pub answer_timeout: Duration,
+    /// What is run, for the log.
+    pub program: String,
+}
+
+/// How a run ended.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CanOutcome {
+    /// Every set-point was sent, the drives settled on the last and were disabled.
+    pub completed: bool,
+    /// Why the session stopped, if it did.
+    pub stop: Option<StopReason>,
+    /// Drives whose disabling was not confirmed after a stop.
+    pub unconfirmed: Vec<NodeId>,
+    /// Set-points sent.
+    pub sent: usize,
+    /// Set-points of the program.
+    pub setpoints: usize,
+    /// Cycles whose SYNC went out a whole period late.
+    pub late_cycles: usize,
+    /// Where the drives stood, X, Z (mm), C (degrees).
+    pub start: [f64; 3],
+    /// Bytes written to the port (slcan) or frames × 16 bytes (socketcan).
+    pub bytes_written: u64,
+    /// Bit times of the frames sent and received during the session, without stuff
+    /// bits ([`CanFrame::bits`]).
+    pub bus_bits: u64,
+    /// The session's time from its start to its end: wall time, or with a SYNC-locked
+    /// clock the cycles' time.
+    pub session_time: Duration,
+}
+
+impl CanOutcome {
+    /// The share of the bus's bit times the session's frames took, at `bitrate` bits/s.
+    pub fn bus_load(&self, bitrate: u32) -> f64 {
+        let time = self.session_time.as_secs_f64();
+        if time > 0.0 {
+            self.bus_bits as f64 / (f64::from(bitrate) * time)
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Why a CAN run could not be carried out. A run the session stopped is not an error: it
+/// is in the outcome.
+#[derive(Debug, Error)]
+pub enum CanError {
+    /// The port or interface could not be opened.
+    #[error("cannot open {link}: {source}")]
+    Open {
+        /// The link.
+        link: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// Reading or writing failed.
+    #[error("{link}: {source}")]
+    Io {
+        /// The link.
+        link: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The slcan adapter answered a command with BEL.
+    #[error("the slcan adapter refused {command}")]
+    Refused {
+        /// The command, as sent.
+        command: String,
+    },
+    /// Nothing answered in time.
+    #[error("{what}: no answer within {waited:?}")]
+    Silent {
+        /// What was waited for.
+        what: String,
+        /// How long.
+        waited: Duration,
+    },
+    /// A drive's position could not be read before the run.
+    #[error("reading node {node}'s position actual value (6064h): {reason}")]
+    Position {
+        /// The node.
+        node: NodeId,
+        /// Why.
+        reason: String,
+    },
+    /// The program cannot be sampled into set-points.
+    #[error("set-points: {0}")]
+    Sample(#[from] SampleError),
+    /// The session's configuration.
+    #[error(transparent)]
+    Session(#[from] crate::can::session::SessionError),
+    /// A SYNC-locked clock needs the adapter's acknowledgements.
+    #[error("a SYNC-locked clock needs an slcan adapter's acknowledgements; {0} has none")]
+    Lockstep(String),
+    /// The executed-path log.
+    #[error("executed-path log: {0}")]
+    Log(#[from] LogError),
+}
+
+/// What came off the link.
+enum Incoming {
+    /// A frame from the bus.
+    Frame(CanFrame),
+    /// The adapter took a command.
+    Ack,
+    /// The adapter refused a command.
+    Refused,
+}
+
+/// An open link.
+enum Port {
+    Slcan {
+        stream: tokio_serial::SerialStream,
+        decoder: Decoder,
+        buffer: Vec<u8>,
+    },
+    Socket(socketcan::tokio::CanSocket),
+}
+
+impl Port {
+    async fn open(link: &CanLink, timeout: Duration) -> Result<Port, CanError> {
+        let name = link.to_string();
+        match link {
+            CanLink::Slcan {
+                path,
+                baud,
+                bitrate,
+            } => {
+                let stream = tokio_serial::new(path, *baud)
+                    .open_native_async()
+                    .map_err(|e| CanError::Open {
+                        link: name.clone(),
+                        source: e.into(),
+                    })?;
+                let mut port = Port::Slcan {
+                    stream,
+                    decoder: Decoder::new(),
+                    buffer: vec![0; 4096],
+                };
+                // Close first: an adapter left open refuses `S`; a closed one refuses the
+                // close, which is fine.
+                port.write(&name, &Command::Close.encode()).await?;
+                port.answer(&name, timeout).await?;
+                for command in [Command::SetBitrate(*bitrate), Command::Open] {
+                    let bytes = command.encode();
+                    port.write(&name, &bytes).await?;
+                    if !port.answer(&name, timeout).await? {
+                        return Err(CanError::Refused {
+                            command: String::from_utf8_lossy(&bytes).trim_end().to_owned(),
+                        });
+                    }
+                }
+                Ok(port)
+            }
+            CanLink::SocketCan { interface } => socketcan::tokio::CanSocket::open(interface)
+                .map(Port::Socket)
+                .map_err(|source| CanError::Open { link: name, source }),
+        }
+    }
+
+    /// Waits for the adapter's answer to a command: true for CR, false for BEL.
+    async fn answer(&mut self, name: &str, timeout: Duration) -> Result<bool, CanError> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let incoming = tokio::time::timeout_at(deadline, self.read(name))
+                .await
+                .map_err(|_| CanError::Silent {
+                    what: format!("{name}, answering a command"),
+                    waited: timeout,
+                })??;
+            for item in incoming {
+                match item {
+                    Incoming::Ack => return Ok(true),
+                    Incoming::Refused => return Ok(false),
+                    Incoming::Frame(_) => {}
+                }
+            }
+        }
+    }
+
+    async fn write(&mut self, name: &str, bytes: &[u8]) -> Result<(), CanError> {
+        let Port::Slcan { stream, .. } = self else {
+            unreachable!("only slcan writes bytes");
+        };
+        stream
+            .write_all(bytes)
+            .await
+            .map_err(|source| CanError::Io {
+                link: name.to_owned(),
+                source,
+            })
+    }
+
+    /// Sends `frames`, in one write on slcan; returns the bytes written.
+    async fn send(&mut self, name: &str, frames: &[CanFrame]) -> Result<u64, CanError> {
+        match self {
+            Port::Slcan { .. } => {
+                let bytes: Vec<u8> = frames
+                    .iter()
+                    .flat_map(|f| Command::Transmit(*f).encode())
+                    .collect();
+                self.write(name, &bytes).await?;
+                Ok(bytes.len() as u64)
+            }
+            Port::Socket(socket) => {
+                for frame in frames {
+                    socket
+                        .write_frame(to_socketcan(frame))
+                        .await
+                        .map_err(|source| CanError::Io {
+                            link: name.to_owned(),
+                            source,
+                        })?;
+                }
+                Ok(16 * frames.len() as u64)
+            }
+        }
+    }
+
+    /// What arrives next (at least one item, unless a read brought only part of a line).
+    async fn read(&mut self, name: &str) -> Result<Vec<Incoming>, CanError> {
+        let io = |source| CanError::Io {
+            link: name.to_owned(),
+            source,
+        };
+        match self {
+            Port::Slcan {
+                stream,
+                decoder,
+                buffer,
+            } => {
+                let n = stream.read(buffer).await.map_err(io)?;
+                if n == 0 {
+                    return Err(io(std::io::ErrorKind::UnexpectedEof.into()));
+                }
+                let mut out = Vec::new();
+                for item in decoder.feed(&buffer[..n]) {
+                    match item {
+                        Ok(Received::Frame { frame, .. }) => out.push(Incoming::Frame(frame)),
+                        Ok(Received::Ok | Received::Transmitted { .. }) => out.push(Incoming::Ack),
+                        Ok(Received::Error) => out.push(Incoming::Refused),
+                        // A line garbled on the serial link: its frame is lost, as on a bus
+                        // with errors; the session's supervision covers what that costs.
+                        Err(error) => tracing::warn!("{name}: {error}"),
+                    }
+                }
+                Ok(out)
+            }
+            Port::Socket(socket) => {
+                let frame = socket.read_frame().await.map_err(io)?;
+                Ok(from_socketcan(&frame)
+                    .map(Incoming::Frame)
+                    .into_iter()
+                    .collect())
+            }
+        }
+    }
+}
+
+fn to_socketcan(frame: &CanFrame) -> socketcan::CanFrame {
+    use socketcan::{EmbeddedFrame, ExtendedId, Id, StandardId};
+    let id = match frame.id() {
+        CanId::Standard(raw) => Id::Standard(StandardId::new(raw).expect("an 11-bit id")),
+        CanId::Extended(raw) => Id::Extended(ExtendedId::new(raw).expect("a 29-bit id")),
+    };
+    let built = if frame.is_remote() {
+        socketcan::CanFrame::new_remote(id, frame.dlc().into())
+    } else {
+        socketcan::CanFrame::new(id, frame.data())
+    };
+    built.expect("a valid CAN 2.0 frame")
+}
+
+/// A socketcan frame as a CAN 2.0 frame; error frames are the interface's reports, not
+/// frames on the bus.
+fn from_socketcan(frame: &socketcan::CanFrame) -> Option<CanFrame> {
+    use socketcan::{EmbeddedFrame, Id};
+    let id = match frame.id() {
+        Id::Standard(id) => CanId::standard(id.as_raw()),
+        Id::Extended(id) => CanId::extended(id.as_raw()),
+    }
+    .ok()?;
+    match frame {
+        socketcan::CanFrame::Data(_) => CanFrame::new(id, frame.data()).ok(),
+        socketcan::CanFrame::Remote(_) => CanFrame::remote(id, frame.dlc() as u8).ok(),
+        socketcan::CanFrame::Error(_) => None,
+    }
+}
+
+/// Reads every drive's position actual value (6064h), in counts, X, Z, C.
+async fn positions(
+    port: &mut Port,
+    name: &str,
+    nodes: [NodeId; 3],
+    timeout: Duration,
+) -> Result<[i64; 3], CanError> {
+    let mut counts = [0; 3];
+    for (k, node) in nodes.into_iter().enumerate() {
+        let failed = |reason: String| CanError::Position { node, reason };
+        let mut sdo = SdoClient::new(node, timeout);
+        sdo.upload(object::POSITION_ACTUAL, 0, Duration::ZERO)
+            .map_err(|e| failed(e.to_string()))?;
+        let request: Vec<CanFrame> = std::iter::from_fn(|| sdo.transmit()).collect();
+        port.send(name, &request).await?;
+        let deadline = Instant::now() + timeout;
+        counts[k] = 'answer: loop {
+            let incoming = tokio::time::timeout_at(deadline, port.read(name))
+                .await
+                .map_err(|_| failed(format!("no answer within {timeout:?}")))??;
+            for item in incoming {
+                let Incoming::Frame(frame) = item else {
+                    continue;
+                };
+                match sdo.receive(&frame) {
+                    Some(Ok(SdoDone::Uploaded { data, .. })) if data.len() == 4 => {
+                        break 'answer i64::from(i32::from_le_bytes([
+                            data[0], data[1], data[2], data[3],
+                        ]));
+                    }
+                    Some(Ok(other)) => return Err(failed(format!("unexpected answer {other:?}"))),
+                    Some(Err(error)) => return Err(failed(error.to_string())),
+                    None => {}
+                }
+            }
+        };
+    }
+    Ok(counts)
+}
+
+/// The session's time; see the module docs.
+struct Clock {
+    kind: CanClock,
+    started: Instant,
+    /// Once locked to the cycle: the session's time now.
+    locked: Option<Duration>,
+}
+
+impl Clock {
+    fn now(&self) -> Duration {
+        self.locked.unwrap_or_else(|| self.started.elapsed())
+    }
+
+    /// A SYNC went out at `now`: with a SYNC-locked clock, the next step is a period on.
+    fn cycle(&mut self, now: Duration, period: Duration) {
+        if self.kind == CanClock::SyncLocked {
+            self.locked = Some(now + period);
+        }
+    }
+}
+
+/// Runs `program` on the drives behind `link`; see the module docs.
+pub async fn stream_can(
+    link: &CanLink,
+    program: &Program,
+    options: CanOptions,
+    log: &mut ExecLog,
+) -> Result<CanOutcome, CanError> {
+    if options.clock == CanClock::SyncLocked && !matches!(link, CanLink::Slcan { .. }) {
+        return Err(CanError::Lockstep(link.to_string()));
+    }
+    let name = link.to_string();
+    let mut port = Port::open(link, options.answer_timeout).await?;
+    let nodes = options.session.nodes;
+    let counts = positions(&mut port, &name, nodes, options.answer_timeout).await?;
+    let scale = options.sample.counts_per_unit;
+    let start: [f64; 3] = std::array::from_fn(|k| counts[k] as f64 / scale[k]);
+    let setpoints: SetPoints = sample(
+        program,
+        Pose::known(start[0], start[1], start[2]),
+        &options.sample,
+    )?;
+    let period = setpoints.period;
+    let total = setpoints.points.len();
+    let mut session = Session::new(options.session.clone(), setpoints)?;
+    log.write(
+        0.0,
+        exec_log::Event::Start {
+            program: options.program.clone(),
+            lines: total,
+            transport: link.transport().to_owned(),
+        },
+    )?;
+    let mut run = Run {
+        clock: Clock {
+            kind: options.clock,
+            started: Instant::now(),
+            locked: None,
+        },
+        outcome: CanOutcome {
+            completed: false,
+            stop: None,
+            unconfirmed: Vec::new(),
+            sent: 0,
+            setpoints: total,
+            late_cycles: 0,
+            start,
+            bytes_written: 0,
+            bus_bits: 0,
+            session_time: Duration::ZERO,
+        },
+        commands: 0,
+        acks: 0,
+        in_flight: VecDeque::new(),
+    };
+    let result = run
+        .drive(&mut port, &name, &mut session, period, &options, log)
+        .await;
+    let reason = match &result {
+        Ok(()) => run.outcome.stop.as_ref().map(ToString::to_string),
+        Err(error) => Some(error.to_string()),
+    };
+    run.outcome.completed = result.is_ok() && session.phase() == Phase::Finished;
+    run.outcome.sent = session.progress().0;
+    run.outcome.session_time = run.clock.now();
+    log.write(
+        run.clock.started.elapsed().as_secs_f64(),
+        exec_log::Event::End {
+            completed: run.outcome.completed,
+            reason,
+        },
+    )?;
+    result.map(|()| run.outcome)
+}
+
+/// A run in progress.
+struct Run {
+    clock: Clock,
+    outcome: CanOutcome,
+    /// slcan commands sent, and acknowledged.
+    commands: u64,
+    acks: u64,
+    /// With a SYNC-locked clock, for each cycle sent and not yet acknowledged: the
+    /// commands sent up to its SYNC.
+    in_flight: VecDeque<u64>,
+}
+
+/// Cycles a SYNC-locked run may have in flight: sent, not yet acknowledged. The adapter and
+/// the simulator take them in order, so a few in flight keep both busy instead of waiting
+/// on each other's every turn; the drives' answers reach the session up to this many
+/// cycles late (32 ms at 4 ms), well within heartbeat supervision's margin over the
+/// heartbeat (100 ms at the defaults).
+const LOCKSTEP_WINDOW: usize = 8;
+
+impl Run {
+    async fn drive(
+        &mut self,
+        port: &mut Port,
+        name: &str,
+        session: &mut Session,
+        period: Duration,
+        options: &CanOptions,
+        log: &mut ExecLog,
+    ) -> Result<(), CanError> {
+        let slcan = matches!(port, Port::Slcan { .. });
+        let mut tick = tokio::time::interval(Duration::from_millis(1));
+        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+        loop {
+            let now = self.clock.now();
+            let frames = session.poll(now);
+            if !frames.is_empty() {
+                self.outcome.bytes_written += port.send(name, &frames).await?;
+                self.outcome.bus_bits += frames.iter().map(|f| u64::from(f.bits())).sum::<u64>();
+                if slcan {
+                    self.commands += frames.len() as u64;
+                }
+            }
+            let synced = frames.iter().any(is_sync);
+            self.report(session, log)?;
+            if matches!(session.phase(), Phase::Finished | Phase::Stopped) {
+                return Ok(());
+            }
+            if synced && self.clock.kind == CanClock::SyncLocked {
+                // Lockstep: the next cycle is a period on, once no more than the window
+                // of cycles is unacknowledged (the drives' answers come with the
+                // acknowledgements).
+                self.in_flight.push_back(self.commands);
+                self.settle(port, name, session, now, options.answer_timeout)
+                    .await?;
+                self.clock.cycle(now, period);
+                continue;
+            }
+            tokio::select! {
+                incoming = port.read(name) => {
+                    let incoming = incoming?;
+                    let now = self.clock.now();
+                    self.take(incoming, session, now)?;
+                }
+                _ = tick.tick() => {}
+            }
+        }
+    }
+
+    /// Reads until at most [`LOCKSTEP_WINDOW`] cycles are unacknowledged.
+    async fn settle(
+        &mut self,
+        port: &mut Port,
+        name: &str,
+        session: &mut Session,
+        now: Duration,
+        timeout: Duration,
+    ) -> Result<(), CanError> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            while self.in_flight.front().is_some_and(|&c| self.acks >= c) {
+                self.in_flight.pop_front();
+            }
+            if self.in_flight.len() <= LOCKSTEP_WINDOW {
+                return Ok(());
+            }
+            let incoming = tokio::time::timeout_at(deadline, port.read(name))
+                .await
+                .map_err(|_| CanError::Silent {
+                    what: format!("{name}, acknowledging a cycle's frames"),
+                    waited: timeout,
+                })??;
+            self.take(incoming, session, now)?;
+        }
+    }
+
+    fn take(
+        &mut self,
+        incoming: Vec<Incoming>,
+        session: &mut Session,
+        now: Duration,
+    ) -> Result<(), CanError> {
+        for item in incoming {
+            match item {
+                Incoming::Frame(frame) => {
+                    self.outcome.bus_bits += u64::from(frame.bits());
+                    session.receive(&frame, now);
+                }
+                Incoming::Ack => self.acks += 1,
+                Incoming::Refused => {
+                    return Err(CanError::Refused {
+                        command: "a frame (its transmit buffer is full or the bus is off)".into(),
+                    })
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The session's events to the log and the outcome.
+    fn report(&mut self, session: &mut Session, log: &mut ExecLog) -> Result<(), CanError> {
+        let t = self.clock.started.elapsed().as_secs_f64();
+        for event in session.events() {
+            match &event {
+                Event::Late { .. } => {
+                    self.outcome.late_cycles += 1;
+                    // The first tells; the count is in the outcome.
+                    if self.outcome.late_cycles > 1 {
+                        continue;
+                    }
+                }
+                Event::Stopped { reason } => {
+                    self.outcome.stop.get_or_insert_with(|| reason.clone());
+                }
+                Event::Halted { unconfirmed } => self.outcome.unconfirmed = unconfirmed.clone(),
+                _ => {}
+            }
+            let text = event.to_string();
+            log.write(t, exec_log::Event::Message { text })?;
+        }
+        Ok(())
+    }
+}
+
+fn is_sync(frame: &CanFrame) -> bool {
+    frame.id() == CanId::Standard(0x080) && !frame.is_remote()
+}
