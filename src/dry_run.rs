@@ -527,6 +527,25 @@ pub async fn dry_run_modbus(
     )
 }
 
+/// How long the simulated drives wait for the next SYNC before wall time runs their clock
+/// again: far beyond any pause of a busy host, well below the dry run's patience.
+const CAN_SYNC_HOLD: Duration = Duration::from_secs(5);
+
+/// Where the simulated drives power up: Z and C at 0, X where the program's first move
+/// puts it, which in a planned program is the ring's clear position. The drives'
+/// every cycle is judged (a CiA 402 drive knows no rapids), and a ring at X 0 is no place
+/// to start from: for external whirling it is concentric with the work, and the way out
+/// to the clear position would run its inserts through the blank.
+fn clear_start(program: &crate::gcode::program::Program) -> whirl_sim::Position {
+    use crate::gcode::program::{Axis, Pose};
+    let x = program
+        .steps(Pose::known(0.0, 0.0, 0.0))
+        .find(|step| step.block.target().is_some())
+        .and_then(|step| step.to.get(Axis::X))
+        .unwrap_or(0.0);
+    whirl_sim::Position::from_array([x, 0.0, 0.0])
+}
+
 /// Simulated seconds per wall second of a CAN dry run before the cycle runs (boot-up,
 /// configuration): real time, as the drives' and the master's timeouts are set for it.
 /// Once the cycle runs, the drives' clock is the master's SYNC and the job goes as fast
@@ -566,7 +585,7 @@ pub async fn dry_run_can(
         &simulator::machine(machine),
         counts_per_unit,
         drives.period(),
-        whirl_sim::Position::default(),
+        clear_start(program),
     ))
     .map_err(|e| DryRunError::Can(e.to_string()))?;
     bus.set_guard(Box::new(MergedGuard::new(guard, counts_per_unit)));
@@ -590,6 +609,9 @@ pub async fn dry_run_can(
     };
     let serve_options = ServeOptions {
         time_scale: CAN_BOOT_TIME_SCALE,
+        // The master in lockstep never pauses the cycle: a wait between SYNCs is the host
+        // busy elsewhere, not time the drives should see pass.
+        sync_hold: CAN_SYNC_HOLD,
         ..ServeOptions::default()
     };
     let mut sim = SimSide::new(log);

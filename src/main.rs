@@ -49,17 +49,19 @@ enum Command {
     Stream {
         /// A program (G-code) or a job (`.toml`, planned for the machine first).
         input: PathBuf,
-        /// The serial port (a device or a pseudo-terminal link such as whirl-sim's), or for
-        /// `--transport modbus-tcp` the controller's address (HOST:PORT).
+        /// The serial port (a device or a pseudo-terminal link such as whirl-sim's), for
+        /// `--transport modbus-tcp` the controller's address (HOST:PORT), for `can` the
+        /// interface; default: the machine profile's `[connection]`.
         #[arg(long)]
-        port: String,
-        /// G-code over a serial line, or segments through the Modbus register map
-        /// (docs/modbus.md) over TCP or RTU.
-        #[arg(long, value_enum, default_value_t = Transport::Serial)]
-        transport: Transport,
-        /// Baud rate.
-        #[arg(long, default_value_t = 115_200)]
-        baud: u32,
+        port: Option<String>,
+        /// G-code over a serial line, segments through the Modbus register map
+        /// (docs/modbus.md) over TCP or RTU, or set-points to CiA 402 drives over CAN;
+        /// default: the machine profile's `[connection]`, else serial.
+        #[arg(long, value_enum)]
+        transport: Option<Transport>,
+        /// Baud rate of the serial line; default: the profile's, else 115200.
+        #[arg(long)]
+        baud: Option<u32>,
         /// Machine profile; default: the built-in simulator's.
         #[arg(long)]
         machine: Option<PathBuf>,
@@ -147,6 +149,19 @@ enum Transport {
     CanSlcan,
     /// CiA 402 drives on a socketcan interface.
     Can,
+}
+
+impl Transport {
+    /// Its name on the command line and in a profile's `[connection]`.
+    fn name(self) -> &'static str {
+        match self {
+            Transport::Serial => "serial",
+            Transport::ModbusTcp => "modbus-tcp",
+            Transport::ModbusRtu => "modbus-rtu",
+            Transport::CanSlcan => "can-slcan",
+            Transport::Can => "can",
+        }
+    }
 }
 
 #[derive(Subcommand)]
@@ -307,10 +322,25 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     .with_context(|| format!("cannot read {}", input.display()))?
             };
             let lines: Vec<String> = text.lines().map(str::to_owned).collect();
-            if transport != Transport::Serial {
-                return stream_modbus(
-                    &input, &text, &lines, &machine, &port, transport, baud, &log,
-                );
+            let link = Link::resolve(&machine, transport, port, baud)?;
+            let (port, baud) = (link.port.as_str(), link.baud);
+            match link.transport {
+                Transport::Serial => {}
+                Transport::ModbusTcp | Transport::ModbusRtu => {
+                    return stream_modbus(
+                        &input,
+                        &text,
+                        &lines,
+                        &machine,
+                        port,
+                        link.transport,
+                        baud,
+                        &log,
+                    );
+                }
+                Transport::CanSlcan | Transport::Can => {
+                    return stream_can(&input, &text, &machine, &link, &log);
+                }
             }
             let mut exec_log = whirl::exec_log::ExecLog::append(&log)?;
             let bar = progress_bar(lines.len());
@@ -329,7 +359,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 .enable_all()
                 .build()?;
             let outcome = runtime.block_on(whirl::transport::stream_port(
-                &port,
+                port,
                 baud,
                 lines,
                 options,
@@ -565,6 +595,117 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 ExitCode::from(BEYOND_DELTA)
             })
         }
+    }
+}
+
+/// Where `whirl stream` goes: the command line's transport, port and baud rate, each
+/// defaulting to the machine profile's `[connection]`.
+struct Link {
+    transport: Transport,
+    port: String,
+    baud: u32,
+}
+
+impl Link {
+    fn resolve(
+        machine: &MachineProfile,
+        transport: Option<Transport>,
+        port: Option<String>,
+        baud: Option<u32>,
+    ) -> Result<Link> {
+        use whirl::connection::Connection;
+        let profile = machine.connection.as_ref();
+        let transport = transport
+            .or_else(|| {
+                profile.map(|c| match c {
+                    Connection::Serial(_) => Transport::Serial,
+                    Connection::ModbusTcp(_) => Transport::ModbusTcp,
+                    Connection::ModbusRtu(_) => Transport::ModbusRtu,
+                    Connection::CanSlcan(_) => Transport::CanSlcan,
+                    Connection::Can(_) => Transport::Can,
+                })
+            })
+            .unwrap_or(Transport::Serial);
+        // The profile's settings count only for its own transport.
+        let same = profile.filter(|c| c.transport_name() == transport.name());
+        let (profile_port, profile_baud) = match same {
+            Some(Connection::Serial(s)) => (Some(s.port.clone()), Some(s.baud)),
+            Some(Connection::ModbusTcp(s)) => (Some(s.address.clone()), None),
+            Some(Connection::ModbusRtu(s)) => (Some(s.port.clone()), Some(s.baud)),
+            Some(Connection::CanSlcan(s)) => (Some(s.port.clone()), Some(s.baud)),
+            Some(Connection::Can(s)) => (Some(s.interface.clone()), None),
+            None => (None, None),
+        };
+        let port = port.or(profile_port).with_context(|| {
+            format!(
+                "no --port given and machine profile \"{}\" has no [connection] for {} that \
+                 names one",
+                machine.name,
+                transport.name()
+            )
+        })?;
+        Ok(Link {
+            transport,
+            port,
+            baud: baud.or(profile_baud).unwrap_or(115_200),
+        })
+    }
+}
+
+/// `whirl stream --transport can-slcan|can`: the program checked against the machine,
+/// sampled from where the drives stand, run on them cycle by cycle.
+fn stream_can(
+    input: &Path,
+    text: &str,
+    machine: &MachineProfile,
+    link: &Link,
+    log: &Path,
+) -> Result<ExitCode> {
+    use whirl::connection::Connection;
+    use whirl::transport::can::{stream_can, CanClock, CanLink, CanOptions};
+    let program = whirl::gcode::parse::read_program(text, machine.x_diameter())?;
+    whirl::machine::check_limits(&program, machine)
+        .map_err(|e| anyhow::anyhow!("block {}: {e}", e.block()))?;
+    let drives = can_drives(machine)?;
+    let can_link = match link.transport {
+        Transport::Can => CanLink::SocketCan {
+            interface: link.port.clone(),
+        },
+        _ => CanLink::Slcan {
+            path: link.port.clone(),
+            baud: link.baud,
+            bitrate: match &machine.connection {
+                Some(Connection::CanSlcan(s)) => s.slcan_bitrate()?,
+                _ => whirl::can::slcan::Bitrate::M1,
+            },
+        },
+    };
+    let options = CanOptions {
+        session: drives.session_config()?,
+        sample: drives.sample_config(machine),
+        clock: CanClock::Wall,
+        answer_timeout: std::time::Duration::from_secs(1),
+        program: input.display().to_string(),
+    };
+    let mut exec_log = whirl::exec_log::ExecLog::append(log)?;
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    let outcome = runtime.block_on(stream_can(&can_link, &program, options, &mut exec_log))?;
+    println!(
+        "{}: {} of {} set-points over {can_link} in {:.1} s; {} late cycles",
+        input.display(),
+        outcome.sent,
+        outcome.setpoints,
+        outcome.session_time.as_secs_f64(),
+        outcome.late_cycles
+    );
+    if outcome.completed {
+        return Ok(ExitCode::SUCCESS);
+    }
+    match outcome.stop {
+        Some(reason) => anyhow::bail!("the drives stopped the job: {reason}"),
+        None => anyhow::bail!("the job ended before the drives settled"),
     }
 }
 

@@ -227,3 +227,84 @@ fn every_example_dry_runs_within_delta_over_modbus_tcp_and_rtu() {
         }
     });
 }
+
+#[test]
+fn every_example_dry_runs_within_delta_on_can_drives_over_slcan() {
+    use whirl::gcode::program::{Axis, Pose};
+    let profile_path = util::root().join("machine-profiles/canopen-drives.toml");
+    let profile = whirl::machine::MachineProfile::load(&profile_path).unwrap();
+    let drives = profile
+        .connection
+        .as_ref()
+        .and_then(|c| c.drives())
+        .unwrap();
+    let (period, scale) = (drives.period().as_secs_f64(), drives.counts_per_unit());
+    // Two at a time: a CAN dry run waits on the pseudo-terminal about half the time.
+    let jobs = util::examples();
+    std::thread::scope(|scope| {
+        for half in jobs.chunks(jobs.len().div_ceil(2)) {
+            let (profile, profile_path) = (&profile, &profile_path);
+            scope.spawn(move || {
+                for job in half {
+                    let dir = tempfile::tempdir().unwrap();
+                    let (code, r, log) = dry_run(
+                        job,
+                        dir.path(),
+                        &[
+                            OsStr::new("--machine"),
+                            profile_path.as_os_str(),
+                            OsStr::new("--transport"),
+                            OsStr::new("can-slcan"),
+                        ],
+                    );
+                    let name = format!("{} over can-slcan", job.display());
+                    assert_eq!(code, Some(0), "{name}: {r:#}");
+                    assert_eq!(r["within_delta"], true, "{name}");
+                    assert_eq!(r["completed"], true, "{name}");
+                    assert_eq!(r["lines_acked"], r["lines"], "{name}: every set-point sent");
+                    assert_eq!(r["points_measured"], r["points"], "{name}");
+                    assert!(r["max_error_mm"].as_f64().unwrap() <= r["delta_mm"].as_f64().unwrap());
+                    assert_eq!(r["alarms"].as_array().map(Vec::len), Some(0), "{name}");
+                    // The bus's load: a cycle's seven frames of up to 6 bytes and a SYNC
+                    // take under 800 bit times of the 4000 a 4 ms cycle has at 1 Mbit/s.
+                    let load = r["link_utilization"].as_f64().unwrap();
+                    assert!(load > 0.0 && load < 0.2, "{name}: {load}");
+                    // The simulator's own record: the drives' path is one unbroken line
+                    // of set-point cycles, as long as the set-points, ending where the
+                    // program does.
+                    let planned = whirl::plan::plan(&whirl::job::Job::load(job).unwrap(), profile)
+                        .unwrap()
+                        .program;
+                    let end = planned.steps(Pose::known(0.0, 0.0, 0.0)).last().unwrap().to;
+                    let moves: Vec<([f64; 2], [f64; 3], [f64; 3])> = log
+                        .records
+                        .iter()
+                        .filter_map(|rec| match &rec.event {
+                            Event::Executed {
+                                times, from, to, ..
+                            } => Some((*times, *from, *to)),
+                            _ => None,
+                        })
+                        .collect();
+                    for pair in moves.windows(2) {
+                        assert_eq!(pair[0].2, pair[1].1, "{name}: a gap in the path");
+                        assert!((pair[0].0[1] - pair[1].0[0]).abs() < 1e-9, "{name}");
+                    }
+                    let last = moves.last().unwrap().2;
+                    for (k, axis) in Axis::ALL.into_iter().enumerate() {
+                        let want = end.get(axis).unwrap();
+                        assert!((last[k] - want).abs() <= 1.0 / scale[k], "{name}: {axis}");
+                    }
+                    // Machine time: the set-points' cycles, then the few the drives take to
+                    // settle on the last one.
+                    let cycles = r["lines"].as_f64().unwrap() * period;
+                    let moving = r["machine_time_s"].as_f64().unwrap();
+                    assert!(
+                        moving >= cycles - 1e-6 && moving < cycles + 0.5,
+                        "{name}: {moving} s for {cycles} s of set-points"
+                    );
+                }
+            });
+        }
+    });
+}

@@ -269,3 +269,72 @@ fn stream_through_the_modbus_map(
     assert_eq!(executed.len(), 41, "{executed:?}");
     assert!(executed.windows(2).all(|w| w[0] < w[1]), "{executed:?}");
 }
+
+#[test]
+fn whirl_stream_runs_a_program_on_whirl_sims_can_drives_through_slcan() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("slcan");
+    let sim_log = dir.path().join("sim.jsonl");
+    let profile = util::root().join("machine-profiles/canopen-drives.toml");
+    let _sim = Sim::serving(
+        OsStr::new("--can-slcan"),
+        &link,
+        &[
+            OsStr::new("--machine"),
+            profile.as_os_str(),
+            OsStr::new("--idle-exit"),
+            OsStr::new("10"),
+            OsStr::new("--log"),
+            sim_log.as_os_str(),
+        ],
+    );
+    // 1 mm of Z at 600 mm/min (0.1 s, 25 cycles of 4 ms), a quarter turn of C at
+    // 3600 deg/min (0.25 s, 63 cycles: 62.5 rounded up), in real time. The profile names
+    // the transport (can-slcan); the port is the simulator's.
+    let program = util::write(
+        dir.path(),
+        "short.nc",
+        "G21 G90 G94\nG0 X1 Z0 C0\nG1 Z-1 F600\nG1 C90 F3600\nG0 X0\n",
+    );
+    let log = dir.path().join("exec.jsonl");
+    let o = util::whirl(&[
+        OsStr::new("stream"),
+        program.as_os_str(),
+        OsStr::new("--machine"),
+        profile.as_os_str(),
+        OsStr::new("--port"),
+        link.as_os_str(),
+        OsStr::new("--log"),
+        log.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("over slcan adapter"), "{stdout}");
+    // The simulator's drives end where the program does: X back to 0, Z at -1, C at 90°.
+    let events: Vec<serde_json::Value> = std::fs::read_to_string(&sim_log)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let last = events
+        .iter()
+        .rev()
+        .find(|e| e["event"] == "executed")
+        .expect("the drives executed cycles");
+    let end: Vec<f64> = ["x", "z", "c"]
+        .iter()
+        .map(|k| last["to"][k].as_f64().unwrap())
+        .collect();
+    // X and Z to a count (0.1 µm), C to a count of its 2^20-count encoder.
+    assert!(
+        end[0].abs() < 1e-4 && (end[1] + 1.0).abs() < 1e-4,
+        "{end:?}"
+    );
+    assert!((end[2] - 90.0).abs() <= 360.0 / 1_048_576.0, "{end:?}");
+    let bridge = std::fs::read_to_string(&log).unwrap();
+    assert!(bridge.contains("\"transport\":\"can-slcan\""));
+    assert!(
+        bridge.contains("finished; the drives are disabled"),
+        "{bridge}"
+    );
+}
