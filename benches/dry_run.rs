@@ -54,3 +54,50 @@ fn example(name: &str) {
         100.0 * report.link_utilization
     );
 }
+
+/// The same jobs on the example CANopen machine: set-points to three simulated CiA 402
+/// drives through an slcan adapter on a pseudo-terminal, in lockstep with their SYNC
+/// clock (4 ms cycles), the guard judging every cycle.
+#[divan::bench(
+    args = ["double-start", "left-external", "trapezoidal", "ball-screw"],
+    sample_count = 1,
+    sample_size = 1
+)]
+fn can_slcan(name: &str) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let path = root.join("examples").join(name).join("job.toml");
+    let job = Job::load(&path).expect("the example loads");
+    let machine = MachineProfile::load(&root.join("machine-profiles/canopen-drives.toml"))
+        .expect("the CANopen profile");
+    let drives = machine
+        .connection
+        .as_ref()
+        .and_then(|c| c.drives())
+        .expect("the profile's drives");
+    let plan = whirl::plan::plan(&job, &machine).expect("the example plans");
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("a runtime");
+    let report = runtime
+        .block_on(whirl::dry_run::dry_run_can(
+            &job,
+            &machine,
+            name,
+            &plan.program,
+            drives,
+            &mut ExecLog::discard(),
+        ))
+        .expect("the dry run runs");
+    assert!(report.within_delta, "{report:?}");
+    eprintln!(
+        "{name} over can-slcan: {} set-points, {:.0} s of machine time, overcut {:.4} mm, \
+         undercut {:.4} mm of Δ {} mm, bus {:.1} % busy",
+        report.lines,
+        report.machine_time_s,
+        report.max_overcut_mm,
+        report.max_undercut_mm,
+        report.delta_mm,
+        100.0 * report.link_utilization
+    );
+}

@@ -515,8 +515,15 @@ pub async fn dry_run_modbus(
             .alarm
             .map(|a| a.to_string())
             .or_else(|| outcome.failure.as_ref().map(ToString::to_string)),
-        // A TCP link has no byte rate to fill; the RTU line's use is not measured yet.
-        link_utilization: 0.0,
+        // A TCP link has no byte rate to fill. An RTU line's: the exchanges' bit times
+        // over what the line carries in the controller's time.
+        link_utilization: match kind {
+            ModbusKind::Tcp => 0.0,
+            ModbusKind::Rtu => {
+                let seconds = outcome.wall_time.as_secs_f64() * scale;
+                outcome.rtu_bits as f64 / (f64::from(options.baud) * seconds)
+            }
+        },
     };
     sim.report(
         name,

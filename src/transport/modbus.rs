@@ -110,6 +110,30 @@ pub struct ModbusOutcome {
     pub reconnects: u32,
     /// From the first request to the end.
     pub wall_time: Duration,
+    /// Bit times the requests and answers would take on an RTU line (8N1), the 3.5
+    /// characters of silence that end each frame included ([`rtu_bits`]); for Modbus TCP
+    /// what the same exchanges would cost on a serial line.
+    pub rtu_bits: u64,
+}
+
+/// Bit times of one exchange on an RTU line at 10 bits a character (8N1, as the transport
+/// opens the port): the request's frame and, if one came, the answer's, each its unit
+/// address, PDU and CRC-16 plus the 3.5 characters of silence that end an RTU frame
+/// (Modbus over Serial Line, 2.5.1.1).
+pub fn rtu_bits(request: &Request, answer: Option<&Result<Response, Exception>>) -> u64 {
+    let asked = match request {
+        Request::ReadHolding { .. } | Request::WriteSingle { .. } => 5,
+        Request::WriteMultiple { values, .. } => 6 + 2 * values.len() as u64,
+    };
+    let answered = match (answer, request) {
+        (None, _) => None,
+        (Some(Err(_)), _) => Some(2),
+        (Some(Ok(_)), Request::ReadHolding { count, .. }) => Some(2 + 2 * u64::from(*count)),
+        (Some(Ok(_)), _) => Some(5),
+    };
+    // Address 1 byte and CRC 2 around the PDU, then 3.5 characters of silence.
+    let frame = |pdu: u64| (pdu + 3) * 10 + 35;
+    frame(asked) + answered.map_or(0, frame)
 }
 
 /// Why a stream could not be carried out (an alarm or a writer failure is an outcome).
@@ -180,6 +204,7 @@ pub async fn stream_modbus(
         timeouts: 0,
         reconnects: 0,
         wall_time: Duration::ZERO,
+        rtu_bits: 0,
     };
     let mut finished = false;
     while !finished {
@@ -190,6 +215,13 @@ pub async fn stream_modbus(
                     break;
                 };
                 let answer = tokio::time::timeout(options.timeout, call(conn, &request)).await;
+                outcome.rtu_bits += rtu_bits(
+                    &request,
+                    match &answer {
+                        Ok(Ok(answer)) => Some(answer),
+                        _ => None,
+                    },
+                );
                 let lost = match answer {
                     Ok(Ok(answer)) => {
                         writer.response(answer);
@@ -407,4 +439,36 @@ fn exception(code: ExceptionCode) -> Option<Exception> {
         ExceptionCode::ServerDeviceBusy => Exception::ServerDeviceBusy,
         _ => return None,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_rtu_exchange_costs_its_frames_bytes_and_silences() {
+        // Modbus over Serial Line: a frame is address + PDU + CRC, 10 bits a character at
+        // 8N1, then 3.5 characters of silence (35 bit times).
+        let read = Request::ReadHolding {
+            address: 0,
+            count: 8,
+        };
+        // Request 1 + 5 + 2 = 8 bytes; answer 1 + (2 + 16) + 2 = 21 bytes.
+        let answer: Result<Response, Exception> = Ok(Response::ReadHolding(vec![0; 8]));
+        assert_eq!(rtu_bits(&read, Some(&answer)), 80 + 35 + 210 + 35);
+        // A slot: FC16 of 16 registers is 1 + (6 + 32) + 2 = 41 bytes, its answer 8.
+        let slot = Request::WriteMultiple {
+            address: 100,
+            values: vec![0; 16],
+        };
+        let written = Ok(Response::WriteMultiple {
+            address: 100,
+            count: 16,
+        });
+        assert_eq!(rtu_bits(&slot, Some(&written)), 410 + 35 + 80 + 35);
+        // An exception answer is 1 + 2 + 2 bytes; a lost one costs only the request.
+        let refused = Err(Exception::IllegalDataAddress);
+        assert_eq!(rtu_bits(&read, Some(&refused)), 115 + 50 + 35);
+        assert_eq!(rtu_bits(&read, None), 115);
+    }
 }
