@@ -86,6 +86,7 @@ fn can_slcan(name: &str) {
             name,
             &plan.program,
             drives,
+            whirl::can::slcan::Bitrate::M1,
             &mut ExecLog::discard(),
         ))
         .expect("the dry run runs");

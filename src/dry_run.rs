@@ -534,6 +534,9 @@ pub async fn dry_run_modbus(
     )
 }
 
+/// The least time a CAN dry run's master waits for an SDO answer or a heartbeat.
+const CAN_HOST_PATIENCE: Duration = Duration::from_secs(1);
+
 /// How long the simulated drives wait for the next SYNC before wall time runs their clock
 /// again: far beyond any pause of a busy host, well below the dry run's patience.
 const CAN_SYNC_HOLD: Duration = Duration::from_secs(5);
@@ -560,7 +563,8 @@ fn clear_start(program: &crate::gcode::program::Program) -> whirl_sim::Position 
 const CAN_BOOT_TIME_SCALE: f64 = 1.0;
 
 /// Dry-runs `program` (planned for `job` on `machine`) on three simulated CiA 402 drives
-/// behind an slcan adapter on a pseudo-terminal, set as `drives` says: whirl's CANopen
+/// behind an slcan adapter on a pseudo-terminal, set as `drives` says, the bus at
+/// `bitrate`: whirl's CANopen
 /// master streams the set-points through the adapter in lockstep with the drives' SYNC
 /// clock ([`crate::transport::can::CanClock::SyncLocked`]), and the Δ guard judges the
 /// cycles the drives executed, merged into the straight stretches they make up
@@ -574,9 +578,9 @@ pub async fn dry_run_can(
     name: &str,
     program: &crate::gcode::program::Program,
     drives: &crate::connection::DriveSettings,
+    bitrate: crate::can::slcan::Bitrate,
     log: &mut ExecLog,
 ) -> Result<DryRunReport, DryRunError> {
-    use crate::can::slcan::Bitrate;
     use crate::transport::can::{stream_can, CanClock, CanLink, CanOptions};
     use whirl_sim::canopen::serve::{serve_slcan, ServeOptions};
     use whirl_sim::canopen::{Bus, BusConfig, BusEvent};
@@ -584,7 +588,12 @@ pub async fn dry_run_can(
     crate::machine::check_limits(program, machine)
         .map_err(|e| DryRunError::Can(format!("block {}: {e}", e.block())))?;
     let settings = |e: crate::connection::SettingError| DryRunError::Can(e.to_string());
-    let session = drives.session_config().map_err(settings)?;
+    let mut session = drives.session_config().map_err(settings)?;
+    // Until the first SYNC the master and the simulated drives both run on the wall clock
+    // of one host, which may pause either for longer than a bus ever would: such a pause
+    // must not read as a dead drive. From the first SYNC on, heartbeats are exact.
+    session.sdo_timeout = session.sdo_timeout.max(CAN_HOST_PATIENCE);
+    session.heartbeat_timeout = session.heartbeat_timeout.max(CAN_HOST_PATIENCE);
     let counts_per_unit = drives.counts_per_unit();
     let guard = DeltaGuard::new(job, machine)?;
     let points = guard.points();
@@ -601,7 +610,6 @@ pub async fn dry_run_can(
     let device = slave
         .name()
         .ok_or_else(|| DryRunError::Simulator(std::io::Error::other("the pty has no name")))?;
-    let bitrate = Bitrate::M1;
     let link = CanLink::Slcan {
         path: device,
         baud: 115_200,

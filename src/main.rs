@@ -423,6 +423,15 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 ),
             };
             let lines: Vec<String> = text.lines().map(str::to_owned).collect();
+            // Settled before the log is opened: a refusal leaves nothing behind.
+            let can = match transport {
+                Transport::CanSlcan => Some((can_drives(&machine)?, can_bitrate(&machine)?)),
+                Transport::Can => anyhow::bail!(
+                    "the simulated drives are reached through an slcan adapter, not a \
+                     socketcan interface: dry-run with --transport can-slcan"
+                ),
+                _ => None,
+            };
             let mut exec_log = match &log {
                 Some(path) => whirl::exec_log::ExecLog::append(path)?,
                 None => whirl::exec_log::ExecLog::discard(),
@@ -471,25 +480,22 @@ fn run(cli: Cli) -> Result<ExitCode> {
                         )
                         .await
                     }
-                    Transport::CanSlcan => {
+                    Transport::CanSlcan | Transport::Can => {
+                        let (drives, bitrate) = can.expect("settled above");
                         let program =
                             whirl::gcode::parse::read_program(&text, machine.x_diameter())
                                 .with_context(|| format!("cannot read {name}"))?;
-                        let drives = can_drives(&machine)?;
                         whirl::dry_run::dry_run_can(
                             &job,
                             &machine,
                             &name,
                             &program,
                             drives,
+                            bitrate,
                             &mut exec_log,
                         )
                         .await
                     }
-                    Transport::Can => anyhow::bail!(
-                        "the simulated drives are reached through an slcan adapter, not a \
-                         socketcan interface: dry-run with --transport can-slcan"
-                    ),
                 }
                 .map_err(anyhow::Error::from)
             });
@@ -661,7 +667,6 @@ fn stream_can(
     link: &Link,
     log: &Path,
 ) -> Result<ExitCode> {
-    use whirl::connection::Connection;
     use whirl::transport::can::{stream_can, CanClock, CanLink, CanOptions};
     let program = whirl::gcode::parse::read_program(text, machine.x_diameter())?;
     whirl::machine::check_limits(&program, machine)
@@ -674,10 +679,7 @@ fn stream_can(
         _ => CanLink::Slcan {
             path: link.port.clone(),
             baud: link.baud,
-            bitrate: match &machine.connection {
-                Some(Connection::CanSlcan(s)) => s.slcan_bitrate()?,
-                _ => whirl::can::slcan::Bitrate::M1,
-            },
+            bitrate: can_bitrate(machine)?,
         },
     };
     let options = CanOptions {
@@ -707,6 +709,15 @@ fn stream_can(
         Some(reason) => anyhow::bail!("the drives stopped the job: {reason}"),
         None => anyhow::bail!("the job ended before the drives settled"),
     }
+}
+
+/// The CAN bus's bit rate: the profile's slcan adapter's, else 1 Mbit/s (a socketcan
+/// interface's is set by the system).
+fn can_bitrate(machine: &MachineProfile) -> Result<whirl::can::slcan::Bitrate> {
+    Ok(match &machine.connection {
+        Some(whirl::connection::Connection::CanSlcan(s)) => s.slcan_bitrate()?,
+        _ => whirl::can::slcan::Bitrate::M1,
+    })
 }
 
 /// The CAN drives' settings of `machine`'s `[connection]`.

@@ -11,6 +11,10 @@
 //! - [`serial`]: a G-code program streamed to a grbl/grblHAL controller over a serial line
 //!   (tokio-serial), or over any byte stream ([`serial::stream`]), so tests and the dry run
 //!   can use an in-memory pipe or a pseudo-terminal.
+//! - [`modbus`]: segments through the register map of `docs/modbus.md`, over tokio-modbus
+//!   TCP or RTU.
+//! - [`can`]: set-points to three CiA 402 drives, through an slcan adapter on a serial line
+//!   or a socketcan interface.
 
 pub mod can;
 pub mod modbus;

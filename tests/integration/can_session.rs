@@ -203,7 +203,13 @@ fn a_planned_program_runs_on_three_simulated_drives_set_point_by_set_point() {
         .events
         .iter()
         .any(|e| matches!(e, Event::Late { .. } | Event::Stopped { .. })));
-    // M3 before the plunge, M5 after the retract.
+    // M3 before the plunge (after the lead-in's rapids), M5 after the retract.
+    let m3 = program
+        .blocks
+        .iter()
+        .position(|b| matches!(b, Block::SpindleOn { .. }))
+        .unwrap();
+    assert!(matches!(program.blocks[m3 + 1], Block::Feed { .. }));
     let spindle: Vec<&Event> = rig
         .events
         .iter()
@@ -213,7 +219,7 @@ fn a_planned_program_runs_on_three_simulated_drives_set_point_by_set_point() {
         spindle,
         [
             &Event::Spindle {
-                block: 3,
+                block: m3,
                 rpm: Some(1500.0)
             },
             &Event::Spindle {

@@ -429,3 +429,75 @@ fn a_groove_too_long_for_a_32_bit_controllers_c_is_refused_naming_how_far_c_goes
     let run = plan(&job, &out, &report, Some(&linuxcnc));
     assert!(run.ok, "{}", run.stderr);
 }
+
+/// `whirl ARGS…` that must fail: its exit code 1 and its message.
+fn fails(args: &[&OsStr]) -> String {
+    let o = util::whirl(args);
+    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stdout));
+    String::from_utf8_lossy(&o.stderr).into()
+}
+
+#[test]
+fn can_transports_without_drives_or_a_port_are_refused_before_anything_is_opened() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = util::example("double-start");
+    let log = dir.path().join("exec.jsonl");
+    // The built-in simulator's profile is a grblHAL machine: it says nothing of CAN drives.
+    let message = fails(&[
+        OsStr::new("dry-run"),
+        job.as_os_str(),
+        OsStr::new("--transport"),
+        OsStr::new("can-slcan"),
+        OsStr::new("--log"),
+        log.as_os_str(),
+    ]);
+    assert!(message.contains("has no CAN drives"), "{message}");
+    assert!(message.contains("machine-profiles/canopen-drives.toml"), "{message}");
+    // The simulated drives hang off an slcan adapter, not a socketcan interface.
+    let profile = util::root().join("machine-profiles/canopen-drives.toml");
+    let message = fails(&[
+        OsStr::new("dry-run"),
+        job.as_os_str(),
+        OsStr::new("--machine"),
+        profile.as_os_str(),
+        OsStr::new("--transport"),
+        OsStr::new("can"),
+    ]);
+    assert!(message.contains("--transport can-slcan"), "{message}");
+    // No --port and a profile whose [connection] is for another transport.
+    let program = util::write(dir.path(), "p.nc", "G21 G90 G94\nG0 X1 Z0 C0\n");
+    let message = fails(&[
+        OsStr::new("stream"),
+        program.as_os_str(),
+        OsStr::new("--machine"),
+        profile.as_os_str(),
+        OsStr::new("--transport"),
+        OsStr::new("modbus-tcp"),
+        OsStr::new("--log"),
+        log.as_os_str(),
+    ]);
+    assert!(message.contains("no --port given"), "{message}");
+    assert!(message.contains("modbus-tcp"), "{message}");
+    // Nothing was run: the log was never opened.
+    assert!(!log.exists());
+}
+
+#[test]
+fn a_can_stream_to_a_port_that_does_not_exist_names_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let profile = util::root().join("machine-profiles/canopen-drives.toml");
+    let program = util::write(dir.path(), "p.nc", "G21 G90 G94\nG0 X1 Z0 C0\n");
+    let missing = dir.path().join("no-adapter");
+    let message = fails(&[
+        OsStr::new("stream"),
+        program.as_os_str(),
+        OsStr::new("--machine"),
+        profile.as_os_str(),
+        OsStr::new("--port"),
+        missing.as_os_str(),
+        OsStr::new("--log"),
+        dir.path().join("exec.jsonl").as_os_str(),
+    ]);
+    assert!(message.contains("cannot open slcan adapter"), "{message}");
+    assert!(message.contains("no-adapter"), "{message}");
+}

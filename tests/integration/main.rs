@@ -1,6 +1,7 @@
 //! Integration tests: one binary, shared helpers in `util`.
 
 mod can_session;
+mod can_wire;
 mod cli;
 mod dry_run;
 mod link;
