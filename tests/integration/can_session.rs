@@ -12,7 +12,6 @@ use whirl::can::session::{Event, Phase, Session, SessionConfig, StopReason};
 use whirl::can::setpoints::{sample, SampleConfig, SetPoints};
 use whirl::can::slcan::{Bitrate, Command, Decoder, Received};
 use whirl::gcode::program::{Axis, Block, Pose, Program};
-use whirl::job::Job;
 use whirl::machine::MachineProfile;
 use whirl::simulator::machine;
 use whirl_sim::canopen::{Bus, BusConfig, BusEvent, PowerState};
@@ -29,18 +28,7 @@ const SCALE: [f64; 3] = [10_000.0, 10_000.0, 1_048_576.0 / 360.0];
 /// (lead-in, M3, plunge, linked moves), then its lead-out (the blocks after the last
 /// linked move: retract, M5).
 fn program() -> Program {
-    let profile = MachineProfile::builtin_sim().unwrap();
-    let job = Job::load(&util::example("double-start")).unwrap();
-    let plan = whirl::plan::plan(&job, &profile).unwrap();
-    let blocks = plan.program.blocks;
-    let last_linked = blocks
-        .iter()
-        .rposition(|b| matches!(b, Block::Linked { .. }))
-        .unwrap();
-    let mut short: Vec<Block> = blocks[..200].to_vec();
-    short.extend_from_slice(&blocks[last_linked + 1..]);
-    assert!(matches!(short.last(), Some(Block::SpindleOff)));
-    Program { blocks: short }
+    util::short_double_start(&MachineProfile::builtin_sim().unwrap())
 }
 
 fn setpoints(program: &Program) -> SetPoints {

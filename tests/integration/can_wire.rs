@@ -23,7 +23,6 @@ use whirl::can::slcan::Bitrate;
 use whirl::connection::DriveSettings;
 use whirl::exec_log::{self, ExecLog};
 use whirl::gcode::program::{Axis, Block, Pose, Program};
-use whirl::job::Job;
 use whirl::machine::MachineProfile;
 use whirl::transport::can::{stream_can, CanClock, CanError, CanLink, CanOptions, CanOutcome};
 use whirl_sim::canopen::serve::{serve_slcan, ServeOptions, SharedBus};
@@ -54,21 +53,9 @@ fn drive_settings(profile: &MachineProfile) -> DriveSettings {
         .expect("the profile's connection has drives")
 }
 
-/// The double-start example planned for `profile`, cut to its first 200 blocks (lead-in,
-/// M3, plunge, linked moves) and its lead-out (the blocks after the last linked move:
-/// retract, M5), as `can_session.rs` cuts it.
+/// The shortened double-start job ([`util::short_double_start`]) for `profile`.
 fn program(profile: &MachineProfile) -> Program {
-    let job = Job::load(&util::example("double-start")).unwrap();
-    let plan = whirl::plan::plan(&job, profile).unwrap();
-    let blocks = plan.program.blocks;
-    let last_linked = blocks
-        .iter()
-        .rposition(|b| matches!(b, Block::Linked { .. }))
-        .unwrap();
-    let mut short: Vec<Block> = blocks[..200].to_vec();
-    short.extend_from_slice(&blocks[last_linked + 1..]);
-    assert!(matches!(short.last(), Some(Block::SpindleOff)));
-    Program { blocks: short }
+    util::short_double_start(profile)
 }
 
 /// A program of a few cycles: a rapid of 0.1 mm on X and back.

@@ -141,3 +141,22 @@ pub fn python_with(module: &str, package: &str) -> bool {
         Ok(_) => true,
     }
 }
+
+/// The double-start example planned for `profile`, cut to its first 200 blocks (lead-in,
+/// M3, plunge, linked moves) and its lead-out (the blocks after the last linked move:
+/// retract, M5): a stretch of real whirling path that runs in seconds.
+pub fn short_double_start(
+    profile: &whirl::machine::MachineProfile,
+) -> whirl::gcode::program::Program {
+    use whirl::gcode::program::{Block, Program};
+    let job = whirl::job::Job::load(&example("double-start")).unwrap();
+    let blocks = whirl::plan::plan(&job, profile).unwrap().program.blocks;
+    let last_linked = blocks
+        .iter()
+        .rposition(|b| matches!(b, Block::Linked { .. }))
+        .unwrap();
+    let mut short: Vec<Block> = blocks[..200].to_vec();
+    short.extend_from_slice(&blocks[last_linked + 1..]);
+    assert!(matches!(short.last(), Some(Block::SpindleOff)));
+    Program { blocks: short }
+}
