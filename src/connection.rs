@@ -49,7 +49,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::can::canopen::NodeId;
-use crate::can::session::SessionConfig;
+use crate::can::session::{Operation, SessionConfig};
 use crate::can::setpoints::SampleConfig;
 use crate::can::slcan::Bitrate;
 use crate::gcode::post::Dialect;
@@ -155,9 +155,9 @@ pub struct SocketCanSettings {
     pub drives: DriveSettings,
 }
 
-/// The three CiA 402 drives (X, Z, C) in cyclic synchronous position mode: their nodes,
-/// the SYNC cycle, their scales and supervision. `[connection.drives]` of the CAN
-/// transports.
+/// The three CiA 402 drives (X, Z, C), in cyclic synchronous position or interpolated
+/// position mode: their nodes, the mode, the SYNC cycle, their scales and supervision.
+/// `[connection.drives]` of the CAN transports.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DriveSettings {
@@ -187,6 +187,49 @@ pub struct DriveSettings {
     /// 60 000.
     #[serde(default = "default_spin_up_ms")]
     pub spin_up_ms: u32,
+    /// The drives' mode of operation: `"csp"` (the default) or `"ip"`.
+    #[serde(default)]
+    pub mode: DriveMode,
+}
+
+/// `connection.drives.mode`: how the set-points reach the drives, one a SYNC either way.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DriveMode {
+    /// `"csp"`: cyclic synchronous position (CiA 402 mode 8), the target position 607Ah.
+    #[default]
+    Csp,
+    /// `"ip"`: interpolated position (mode 7), 60C1h sub-index 1 with ip mode enabled.
+    Ip,
+}
+
+impl DriveMode {
+    /// The values a profile spells.
+    pub const NAMES: [&'static str; 2] = ["csp", "ip"];
+
+    /// The session's mode of operation.
+    pub fn operation(self) -> Operation {
+        match self {
+            DriveMode::Csp => Operation::CyclicSynchronousPosition,
+            DriveMode::Ip => Operation::InterpolatedPosition,
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for DriveMode {
+    /// `"csp"` or `"ip"`; anything else is refused with both named (the table's reader
+    /// puts the key, `connection.drives.mode`, in front).
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let value = String::deserialize(deserializer)?;
+        match value.as_str() {
+            "csp" => Ok(DriveMode::Csp),
+            "ip" => Ok(DriveMode::Ip),
+            other => Err(serde::de::Error::custom(format!(
+                "{other:?} must be \"csp\" (cyclic synchronous position, CiA 402 mode 8) or \
+                 \"ip\" (interpolated position, mode 7)"
+            ))),
+        }
+    }
 }
 
 /// The baud rates a `modbus-rtu` connection takes: the standard rates of RS-485 Modbus
@@ -589,9 +632,9 @@ impl DriveSettings {
         Ok(ids.map(|id| id.expect("every slot was filled")))
     }
 
-    /// The CANopen session's configuration: these nodes, heartbeat and following error
-    /// window, every other setting at [`SessionConfig::default`]. An error for settings
-    /// [`DriveSettings::validate`] refuses.
+    /// The CANopen session's configuration: these nodes, heartbeat, following error
+    /// window and mode, every other setting at [`SessionConfig::default`]. An error for
+    /// settings [`DriveSettings::validate`] refuses.
     pub fn session_config(&self) -> Result<SessionConfig, SettingError> {
         self.check()?;
         Ok(SessionConfig {
@@ -599,6 +642,7 @@ impl DriveSettings {
             heartbeat_ms: self.heartbeat_ms,
             heartbeat_timeout: self.heartbeat_timeout(),
             following_error_window: self.following_error_window,
+            operation: self.mode.operation(),
             ..SessionConfig::default()
         })
     }
@@ -826,6 +870,7 @@ counts_per_degree = 2912.711111111111
             heartbeat_timeout_ms: None,
             following_error_window: 10_000,
             spin_up_ms: 2000,
+            mode: DriveMode::Csp,
         };
         let slcan: Connection = toml::from_str(SLCAN).unwrap();
         assert_eq!(
@@ -1356,6 +1401,60 @@ counts_per_degree = 2912.711111111111
         assert_eq!(rate.slcan_bitrate(), Ok(Bitrate::K125));
         rate.bitrate = 1_000;
         assert_eq!(rate.slcan_bitrate().unwrap_err().key, "connection.bitrate");
+    }
+
+    #[test]
+    fn the_drives_mode_selects_the_sessions_operation() {
+        // Absent: cyclic synchronous position, as before the key existed.
+        let drives = |text: &str| {
+            let connection: Connection = toml::from_str(text).unwrap();
+            connection.drives().unwrap().clone()
+        };
+        let csp = drives(SLCAN);
+        assert_eq!(csp.mode, DriveMode::Csp);
+        assert_eq!(
+            csp.session_config().unwrap().operation,
+            Operation::CyclicSynchronousPosition
+        );
+        assert_eq!(drives(&format!("{SLCAN}mode = \"csp\"\n")), csp);
+        // "ip": interpolated position, everything else alike.
+        let text = format!("{SOCKETCAN}mode = \"ip\"\n");
+        let ip = drives(&text);
+        assert_eq!(ip.mode, DriveMode::Ip);
+        assert_eq!(
+            ip.session_config().unwrap(),
+            SessionConfig {
+                operation: Operation::InterpolatedPosition,
+                ..csp.session_config().unwrap()
+            }
+        );
+        assert_eq!(
+            DriveMode::NAMES.map(|n| format!("{n:?}")),
+            ["\"csp\"", "\"ip\""]
+        );
+        // Written back as the profile spells it, and loaded in a profile.
+        let connection: Connection = toml::from_str(&text).unwrap();
+        let written = toml::to_string(&connection).unwrap();
+        assert!(written.contains("mode = \"ip\""), "{written}");
+        let profile = load(&text).unwrap();
+        assert_eq!(profile.connection, Some(connection));
+        // Anything else is refused, naming the key and the two values.
+        for (value, shown) in [("\"pp\"", "\"pp\""), ("\"IP\"", "\"IP\""), ("7", "")] {
+            let message = unparsed(&format!("{SLCAN}mode = {value}\n"));
+            assert!(
+                message.contains("connection.drives.mode: "),
+                "{value}: {message}"
+            );
+            if !shown.is_empty() {
+                assert!(
+                    message.contains(&format!(
+                        "{shown} must be \"csp\" (cyclic synchronous position, CiA 402 \
+                         mode 8) or \"ip\" (interpolated position, mode 7)"
+                    )),
+                    "{message}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -38,7 +38,16 @@
 //!
 //! In cyclic synchronous position mode the drive follows 607Ah the moment operation is
 //! enabled: the master must write the actual position (6064h) as target before enabling,
-//! or the drive jumps (or trips its following-error window).
+//! or the drive jumps (or trips its following-error window). Statusword bit 12 then says
+//! the drive follows it ([`Statusword::following_target`]).
+//!
+//! In interpolated position mode (7) the set-point is the interpolation data record's
+//! first entry, 60C1h sub-index 1, and Operation enabled is not enough: the master also
+//! sets controlword bit 4, "enable ip mode" ([`ENABLE_IP_MODE`]), and the drive takes
+//! set-points only while its statusword shows bit 12, "ip mode active"
+//! ([`Statusword::ip_mode_active`]). Bit 4 is no part of the state machine's commands
+//! (above, bits 0–3 and 7), so 0x1F is enable operation with ip mode enabled; any command
+//! without it (quick stop 0x02, disable voltage 0x00) ends ip mode too.
 
 use thiserror::Error;
 
@@ -185,6 +194,12 @@ impl Statusword {
         self.bit(12)
     }
 
+    /// Bit 12 in interpolated position mode: ip mode active, the drive takes the
+    /// set-points of 60C1h (0: inactive, they are ignored).
+    pub fn ip_mode_active(self) -> bool {
+        self.bit(12)
+    }
+
     /// Bit 13 in the position modes: following error.
     pub fn following_error(self) -> bool {
         self.bit(13)
@@ -226,6 +241,9 @@ impl Command {
 
 /// Bit 7 of the controlword: fault reset.
 pub const FAULT_RESET_BIT: u16 = 0x80;
+
+/// Bit 4 of the controlword in interpolated position mode: enable ip mode (0: inactive).
+pub const ENABLE_IP_MODE: u16 = 0x10;
 
 /// States a master can hold a drive in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -469,6 +487,9 @@ mod tests {
         assert!(!plain.voltage_enabled() && !plain.warning() && !plain.remote());
         assert!(!plain.target_reached() && !plain.internal_limit());
         assert!(!plain.following_target() && !plain.following_error());
+        // The same bit 12 in interpolated position mode.
+        assert!(word.ip_mode_active() && Statusword(0x1237).ip_mode_active());
+        assert!(!plain.ip_mode_active());
     }
 
     #[test]
@@ -480,6 +501,18 @@ mod tests {
         assert_eq!(Command::DisableVoltage.word(), 0x00);
         assert_eq!(Command::QuickStop.word(), 0x02);
         assert_eq!(Command::FaultReset.word(), 0x80);
+        // Enable ip mode is bit 4, outside every command's bits.
+        assert_eq!(ENABLE_IP_MODE, 1 << 4);
+        for command in [
+            Command::Shutdown,
+            Command::SwitchOn,
+            Command::EnableOperation,
+            Command::DisableVoltage,
+            Command::QuickStop,
+            Command::FaultReset,
+        ] {
+            assert_eq!(command.word() & ENABLE_IP_MODE, 0, "{command:?}");
+        }
     }
 
     /// The transitions of CiA 402's state diagram that commands cause, as (from, word, to).

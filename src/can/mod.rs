@@ -1,9 +1,9 @@
 //! CAN for the drives: CANopen (CiA 301) and its drive profile (CiA 402) over a CAN bus
 //! reached through a serial adapter (slcan) or socketcan, as sans-I/O layers.
 //!
-//! The later transport streams the planned path to three CiA 402 servo drives, X, Z and C
-//! as nodes 1, 2 and 3, in cyclic synchronous position mode: a SYNC each cycle, each
-//! drive's target in its RPDO, its statusword and actual position back in its TPDO. This
+//! The transport ([`crate::transport::can`]) streams the planned path to three CiA 402
+//! servo drives, X, Z and C as nodes 1, 2 and 3, in cyclic synchronous position mode (or
+//! interpolated position mode): a SYNC each cycle, each drive's set-point in its RPDO, its statusword and actual position back in its TPDO. This
 //! module is what that transport needs below the port: frames as values, the Lawicel
 //! codec, CANopen's framing and SDO client, and the CiA 402 state machine's master side.
 //! None of it reads a clock or a port; time is passed in.

@@ -12,20 +12,29 @@
 //! 2. **Configuration**, by expedited SDO, the three nodes in parallel, each node's writes
 //!    in order: device type 1000h read (CiA 402 is 0192h in its low word: anything else is
 //!    not a drive this master knows how to run), producer heartbeat 1017h, modes of
-//!    operation 6060h = 8 (cyclic synchronous position), following error window 6065h,
-//!    interpolation time period 60C2h (the cycle, which the drives lock to), then RPDO1 = controlword 6040h + target position 607Ah and TPDO1 = statusword 6041h +
-//!    position actual 6064h, both every SYNC, by CiA 301's mapping procedure
+//!    operation 6060h = 8 (cyclic synchronous position) or 7 (interpolated position; see
+//!    [`SessionConfig::operation`]), following error window 6065h, interpolation time
+//!    period 60C2h (the cycle, which the drives lock to), then RPDO1 = controlword 6040h +
+//!    the mode's set-point (target position 607Ah, or in interpolated position mode the
+//!    interpolation data record's first entry, 60C1h sub-index 1) and TPDO1 = statusword
+//!    6041h + position actual 6064h, both every SYNC, by CiA 301's mapping procedure
 //!    ([`canopen::pdo_mapping`]). Heartbeat supervision of a node starts when its 1017h
 //!    write is confirmed.
 //! 3. **Start and enable.** NMT start to each node, and the cycle starts: every period,
 //!    each drive's RPDO1 and then one SYNC. The first SYNC only asks for the TPDOs; from
 //!    each drive's first TPDO on, its target is its actual position (CiA 402: in CSP a
-//!    drive follows 607Ah the moment it is enabled), which must be within
+//!    drive follows 607Ah the moment it is enabled, in interpolated position mode 60C1h
+//!    the moment ip mode is active), which must be within
 //!    [`SessionConfig::start_tolerance`] of the set-points' start, and the controlword
-//!    walks it to Operation enabled with a [`PowerSequencer`], one transition a cycle.
+//!    walks it to Operation enabled with a [`PowerSequencer`], one transition a cycle:
+//!    0x06, 0x07, 0x0F. In interpolated position mode one step follows: once a drive
+//!    shows Operation enabled, its controlword also sets bit 4, enable ip mode (0x1F).
 //! 4. **Run.** Once all three show Operation enabled and follow their targets (statusword
-//!    bit 12), each cycle carries the next set-point's three targets, then the SYNC that
-//!    makes the drives take them together. Spindle [`Mark`](super::setpoints::Mark)s are
+//!    bit 12: in CSP "drive follows the command value", in interpolated position mode "ip
+//!    mode active"), each cycle carries the next set-point's three targets, then the SYNC
+//!    that makes the drives take them together. In interpolated position mode a drive
+//!    whose bit 12 drops while it runs stops the job ([`StopReason::IpModeInactive`]): it
+//!    no longer takes its set-points. Spindle [`Mark`](super::setpoints::Mark)s are
 //!    reported as [`Event::Spindle`] when due.
 //! 5. **Settle and disable.** After the last set-point the final targets are held until
 //!    every actual position is within [`SessionConfig::settle_window`], then the drives
@@ -37,7 +46,8 @@
 //! Operational, an SDO failure, a timeout of any phase, or [`Session::stop`] stops the
 //! job: [`Event::Stopped`] says why, once (the first reason wins). If the cycle was
 //! running, it goes on for the stop: each drive in Operation enabled is sent quick stop
-//! (0x02), held there until its position stands still, then disable voltage (0x00),
+//! (0x02), held there until its position stands still, then disable voltage (0x00)
+//! (neither with bit 4: in interpolated position mode ip mode ends with the first),
 //! until every drive still heard from shows Switch on disabled or Fault in a TPDO received
 //! after the stop, or [`SessionConfig::disable_timeout`] passes; [`Event::Halted`] then
 //! names the drives not confirmed. Faults are not reset: a faulted drive stays faulted for
@@ -63,7 +73,7 @@ use super::canopen::{
 };
 use super::cia402::{
     interpolation_time_period, object, Command, Mode, PowerSequencer, PowerState, Statusword,
-    Target,
+    Target, ENABLE_IP_MODE,
 };
 use super::frame::{CanFrame, CanId};
 use super::setpoints::{to_wire, unwrap_near, SetPoints};
@@ -96,6 +106,72 @@ pub struct SessionConfig {
     pub settle_timeout: Duration,
     /// How long disabling may take, after the job and after a stop.
     pub disable_timeout: Duration,
+    /// The drives' mode of operation: how the set-points reach them.
+    pub operation: Operation,
+}
+
+/// The CiA 402 modes of operation the session runs the drives in: either takes one
+/// position set-point a SYNC, in its own object, and shows it follows them in statusword
+/// bit 12.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum Operation {
+    /// Cyclic synchronous position (6060h = 8): the set-point is the target position
+    /// 607Ah, followed from Operation enabled on.
+    #[default]
+    CyclicSynchronousPosition,
+    /// Interpolated position (6060h = 7): the set-point is 60C1h sub-index 1, followed
+    /// once the controlword's bit 4 (enable ip mode) has made ip mode active.
+    InterpolatedPosition,
+}
+
+impl Operation {
+    /// The mode, as 6060h takes it.
+    pub fn mode(self) -> Mode {
+        match self {
+            Operation::CyclicSynchronousPosition => Mode::CyclicSynchronousPosition,
+            Operation::InterpolatedPosition => Mode::InterpolatedPosition,
+        }
+    }
+
+    /// The object that carries the set-point, (index, sub-index), INTEGER32.
+    pub fn set_point_object(self) -> (u16, u8) {
+        match self {
+            Operation::CyclicSynchronousPosition => (object::TARGET_POSITION, 0),
+            Operation::InterpolatedPosition => (object::INTERPOLATION_DATA, 1),
+        }
+    }
+
+    /// The controlword bits beyond the state machine's command that the mode needs while
+    /// the drive is in Operation enabled: enable ip mode in interpolated position mode.
+    fn running_bits(self) -> u16 {
+        match self {
+            Operation::CyclicSynchronousPosition => 0,
+            Operation::InterpolatedPosition => ENABLE_IP_MODE,
+        }
+    }
+
+    /// Whether a drive showing `statusword` takes its set-points: Operation enabled, and
+    /// bit 12 (CSP's "drive follows the command value", interpolated position's "ip mode
+    /// active").
+    fn follows(self, statusword: u16) -> bool {
+        let word = Statusword(statusword);
+        word.state() == Ok(PowerState::OperationEnabled)
+            && match self {
+                Operation::CyclicSynchronousPosition => word.following_target(),
+                Operation::InterpolatedPosition => word.ip_mode_active(),
+            }
+    }
+}
+
+impl std::fmt::Display for Operation {
+    /// The mode's name and number, for the log.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let name = match self {
+            Operation::CyclicSynchronousPosition => "cyclic synchronous position",
+            Operation::InterpolatedPosition => "interpolated position",
+        };
+        write!(f, "{name} (mode {})", self.mode().value())
+    }
 }
 
 impl Default for SessionConfig {
@@ -114,6 +190,7 @@ impl Default for SessionConfig {
             settle_window: 10,
             settle_timeout: Duration::from_secs(1),
             disable_timeout: Duration::from_secs(1),
+            operation: Operation::CyclicSynchronousPosition,
         }
     }
 }
@@ -227,6 +304,20 @@ pub enum StopReason {
         axis: Axis,
         /// The state it shows.
         state: PowerState,
+    },
+    /// In interpolated position mode, a statusword showing Operation enabled without ip
+    /// mode active (bit 12) while running: the drive ignores its set-points.
+    #[error(
+        "node {node} ({axis}) left interpolated position mode: statusword 0x{statusword:04X} \
+         shows ip mode inactive (bit 12), its set-points ignored"
+    )]
+    IpModeInactive {
+        /// The node.
+        node: NodeId,
+        /// Its axis.
+        axis: Axis,
+        /// The statusword.
+        statusword: u16,
     },
     /// A statusword matching no CiA 402 state.
     #[error("node {node} ({axis}): statusword 0x{statusword:04X} matches no CiA 402 state")]
@@ -834,6 +925,19 @@ impl Session {
                 drive.target = Some(actual);
             }
             Phase::Running | Phase::Settling => match state {
+                PowerState::OperationEnabled
+                    if self.config.operation == Operation::InterpolatedPosition
+                        && !Statusword(statusword).ip_mode_active() =>
+                {
+                    self.halt(
+                        StopReason::IpModeInactive {
+                            node,
+                            axis,
+                            statusword,
+                        },
+                        now,
+                    );
+                }
                 PowerState::OperationEnabled => {}
                 PowerState::Fault | PowerState::FaultReactionActive => {
                     self.halt(
@@ -994,13 +1098,11 @@ impl Session {
         self.syncs += 1;
     }
 
-    /// Controlwords of the walk to Operation enabled, or on to running.
+    /// Controlwords of the walk to Operation enabled (and in interpolated position mode
+    /// on to ip mode active), or on to running.
     fn enabling(&mut self, now: Duration) -> Option<[Option<u16>; 3]> {
-        let following = |d: &Drive| {
-            d.state() == Some(PowerState::OperationEnabled)
-                && d.statusword
-                    .is_some_and(|w| Statusword(w).following_target())
-        };
+        let operation = self.config.operation;
+        let following = |d: &Drive| d.statusword.is_some_and(|w| operation.follows(w));
         if self.drives.iter().all(following) {
             self.events.push(Event::Enabled { syncs: self.syncs });
             self.phase = Phase::Running;
@@ -1013,6 +1115,14 @@ impl Session {
             let state = match self.drives[k].statusword {
                 None => "no TPDO seen".to_string(),
                 Some(w) => match PowerState::from_statusword(w) {
+                    Ok(PowerState::OperationEnabled)
+                        if operation == Operation::InterpolatedPosition =>
+                    {
+                        format!(
+                            "OperationEnabled (statusword 0x{w:04X}) without ip mode active \
+                             (bit 12)"
+                        )
+                    }
                     Ok(state) => format!("{state:?} (statusword 0x{w:04X})"),
                     Err(e) => e.to_string(),
                 },
@@ -1037,6 +1147,11 @@ impl Session {
             };
             // The TPDO was checked when it arrived: a statusword that decodes.
             *word = drive.sequencer.controlword(statusword).ok();
+            // Enable ip mode once Operation enabled shows, not before (the sequencer
+            // then sends enable operation, 0x0F).
+            if drive.state() == Some(PowerState::OperationEnabled) {
+                *word = word.map(|w| w | operation.running_bits());
+            }
         }
         Some(words)
     }
@@ -1065,7 +1180,13 @@ impl Session {
             drive.target = Some(target);
         }
         self.sent += 1;
-        Some([Some(Command::EnableOperation.word()); 3])
+        Some([Some(self.run_word()); 3])
+    }
+
+    /// The controlword while the set-points run: enable operation, with enable ip mode
+    /// in interpolated position mode.
+    fn run_word(&self) -> u16 {
+        Command::EnableOperation.word() | self.config.operation.running_bits()
     }
 
     fn settling(&mut self, now: Duration) -> Option<[Option<u16>; 3]> {
@@ -1099,7 +1220,7 @@ impl Session {
             self.halt(reason, now);
             return self.stopping(now);
         }
-        Some([Some(Command::EnableOperation.word()); 3])
+        Some([Some(self.run_word()); 3])
     }
 
     fn disabling(&mut self, now: Duration) -> Option<[Option<u16>; 3]> {
@@ -1185,7 +1306,7 @@ fn configuration(node: NodeId, config: &SessionConfig, cycle: (u8, i8)) -> VecDe
         Op::Write(SdoWrite::u8(
             object::MODES_OF_OPERATION,
             0,
-            Mode::CyclicSynchronousPosition.value() as u8,
+            config.operation.mode().value() as u8,
         )),
         Op::Write(SdoWrite::u32(
             object::FOLLOWING_ERROR_WINDOW,
@@ -1205,6 +1326,7 @@ fn configuration(node: NodeId, config: &SessionConfig, cycle: (u8, i8)) -> VecDe
         sub: 0,
         bits,
     };
+    let (set_point, sub) = config.operation.set_point_object();
     let mappings = [
         PdoConfig {
             direction: PdoDirection::Receive,
@@ -1212,7 +1334,11 @@ fn configuration(node: NodeId, config: &SessionConfig, cycle: (u8, i8)) -> VecDe
             transmission: EVERY_SYNC,
             entries: vec![
                 entry(object::CONTROLWORD, 16),
-                entry(object::TARGET_POSITION, 32),
+                MapEntry {
+                    index: set_point,
+                    sub,
+                    bits: 32,
+                },
             ],
         },
         PdoConfig {
@@ -1237,7 +1363,9 @@ mod tests {
     use super::*;
     use crate::can::setpoints::{sample, SampleConfig};
     use crate::gcode::program::{Block, Pose, Program};
-    use whirl_sim::canopen::{Drive as SimDrive, DriveConfig, Frame, PowerState as SimPower};
+    use whirl_sim::canopen::{
+        Drive as SimDrive, DriveConfig, DriveEvent as SimEvent, Frame, PowerState as SimPower,
+    };
 
     const MS: Duration = Duration::from_millis(1);
     const PERIOD: Duration = Duration::from_millis(2);
@@ -1320,6 +1448,8 @@ mod tests {
         /// A drive cut off the bus (index 0-2).
         pulled: Option<usize>,
         sent: Vec<(Duration, CanFrame)>,
+        /// The frames the session received (after tampering).
+        received: Vec<(Duration, CanFrame)>,
         events: Vec<Event>,
     }
 
@@ -1339,6 +1469,7 @@ mod tests {
                 tamper: None,
                 pulled: None,
                 sent: Vec::new(),
+                received: Vec::new(),
                 events: Vec::new(),
             };
             if !announced {
@@ -1351,13 +1482,17 @@ mod tests {
         }
 
         fn plain() -> Bench {
+            Bench::with(Operation::CyclicSynchronousPosition)
+        }
+
+        /// As [`Bench::plain`], the drives run in `operation`.
+        fn with(operation: Operation) -> Bench {
             let drives = [1, 2, 3].map(DriveConfig::new);
-            Bench::new(
-                setpoints(Pose::known(0.0, 0.0, 0.0)),
-                config(),
-                drives,
-                false,
-            )
+            let config = SessionConfig {
+                operation,
+                ..config()
+            };
+            Bench::new(setpoints(Pose::known(0.0, 0.0, 0.0)), config, drives, false)
         }
 
         /// Moves the drives' frames until the bus is quiet.
@@ -1385,6 +1520,7 @@ mod tests {
                         None => Some(frame),
                     };
                     if let Some(frame) = frame {
+                        self.received.push((self.now, frame));
                         self.session.receive(&frame, self.now);
                     }
                 }
@@ -1454,6 +1590,24 @@ mod tests {
                 }
             }
             cycles
+        }
+
+        /// The statuswords of node `id`'s TPDO1s, with when the session got them.
+        fn statuswords(&self, id: u16) -> Vec<(Duration, u16)> {
+            self.received
+                .iter()
+                .filter(|(_, f)| f.id().raw() == u32::from(0x180 + id))
+                .map(|(t, f)| (*t, u16::from_le_bytes([f.data()[0], f.data()[1]])))
+                .collect()
+        }
+
+        /// The configuration's SDO requests to node 1, in order.
+        fn sdo_requests(&self) -> Vec<[u8; 8]> {
+            self.sent
+                .iter()
+                .filter(|(_, f)| f.id().raw() == 0x601)
+                .map(|(_, f)| f.data().try_into().unwrap())
+                .collect()
         }
 
         fn enabled_syncs(&self) -> usize {
@@ -1613,6 +1767,253 @@ mod tests {
                 std(0x080, &[])
             ]
         );
+    }
+
+    #[test]
+    fn operations_name_their_mode_and_set_point() {
+        let csp = Operation::CyclicSynchronousPosition;
+        let ip = Operation::InterpolatedPosition;
+        assert_eq!(Operation::default(), csp);
+        assert_eq!(SessionConfig::default().operation, csp);
+        assert_eq!((csp.mode().value(), ip.mode().value()), (8, 7));
+        assert_eq!(csp.set_point_object(), (0x607A, 0));
+        assert_eq!(ip.set_point_object(), (0x60C1, 1));
+        assert_eq!(csp.to_string(), "cyclic synchronous position (mode 8)");
+        assert_eq!(ip.to_string(), "interpolated position (mode 7)");
+        // Both take Operation enabled with bit 12; only IP asks for bit 4 to get it.
+        for operation in [csp, ip] {
+            assert!(operation.follows(0x1237));
+            assert!(!operation.follows(0x0237));
+            assert!(!operation.follows(0x1233));
+        }
+        assert_eq!((csp.running_bits(), ip.running_bits()), (0, 0x10));
+    }
+
+    #[test]
+    fn the_ip_configuration_is_written_by_sdo_in_order() {
+        let mut csp = Bench::plain();
+        csp.run_until(|s| s.phase() == Phase::Enabling);
+        let mut ip = Bench::with(Operation::InterpolatedPosition);
+        ip.run_until(|s| s.phase() == Phase::Enabling);
+        let (csp, ip) = (csp.sdo_requests(), ip.sdo_requests());
+        assert_eq!(ip.len(), 20);
+        // 6060h = 7, interpolated position: one byte (0x2F).
+        assert_eq!(ip[2], [0x2F, 0x60, 0x60, 0, 7, 0, 0, 0]);
+        assert_eq!(csp[2], [0x2F, 0x60, 0x60, 0, 8, 0, 0, 0]);
+        // 60C2h as in CSP: the 2 ms cycle, 200 × 10⁻⁵ s.
+        assert_eq!(ip[4], [0x2F, 0xC2, 0x60, 1, 200, 0, 0, 0]);
+        assert_eq!(ip[5], [0x2F, 0xC2, 0x60, 2, (-5i8) as u8, 0, 0, 0]);
+        // RPDO1: invalid, type 1, clear, 6040h/16, 60C1h sub-index 1/32, two entries,
+        // valid.
+        let value = |r: &[u8; 8]| u32::from_le_bytes([r[4], r[5], r[6], r[7]]);
+        let rpdo: Vec<(u16, u8, u32)> = ip[6..13]
+            .iter()
+            .map(|r| (u16::from_le_bytes([r[1], r[2]]), r[3], value(r)))
+            .collect();
+        assert_eq!(
+            rpdo,
+            [
+                (0x1400, 1, 0x8000_0201),
+                (0x1400, 2, 1),
+                (0x1600, 0, 0),
+                (0x1600, 1, 0x6040_0010),
+                (0x1600, 2, 0x60C1_0120),
+                (0x1600, 0, 2),
+                (0x1400, 1, 0x0000_0201),
+            ]
+        );
+        assert_eq!(value(&csp[10]), 0x607A_0020);
+        // The rest as CSP writes it: device type, heartbeat, window, period, TPDO1.
+        for k in (0..20).filter(|k| ![2, 10].contains(k)) {
+            assert_eq!(ip[k], csp[k], "request {k}");
+        }
+    }
+
+    #[test]
+    fn an_ip_job_enables_ip_mode_before_the_set_points() {
+        let mut bench = Bench::with(Operation::InterpolatedPosition);
+        bench.run_to_end();
+        assert_eq!(bench.session.phase(), Phase::Finished);
+        assert!(bench.stopped().is_none());
+        let sp = setpoints(Pose::known(0.0, 0.0, 0.0));
+        let cycles = bench.cycles();
+        // SYNC 1 asks for the TPDOs, 2-4 walk to Operation enabled, 5 enables ip mode:
+        // the set-points start with SYNC 6.
+        let first = bench.enabled_syncs();
+        assert_eq!(first, 5);
+        for axis in 0..3 {
+            let walk: Vec<u16> = cycles[..first]
+                .iter()
+                .filter_map(|c| c.1[axis].map(|r| r.0))
+                .collect();
+            assert_eq!(walk, [0x06, 0x07, 0x0F, 0x1F], "node {}", axis + 1);
+            // Held where they stand (60C1h = the actual position) meanwhile.
+            assert!(cycles[..first]
+                .iter()
+                .all(|c| c.1[axis].is_none_or(|r| r.1 == 0)));
+            // Each TPDO answers a SYNC: Switch on disabled, Ready to switch on, Switched
+            // on, Operation enabled with ip mode inactive, then active (bit 12).
+            let words = bench.statuswords(axis as u16 + 1);
+            let shown: Vec<u16> = words[..5].iter().map(|w| w.1).collect();
+            assert_eq!(shown, [0x0250, 0x0231, 0x0233, 0x0237, 0x1237]);
+            // Bit 12 came with the SYNC that carried 0x1F, before the first set-point.
+            assert_eq!(words[4].0, cycles[first - 1].0);
+            assert!(words[4].0 < cycles[first].0);
+        }
+        // Every set-point once, in order, with enable ip mode.
+        for (k, point) in sp.points.iter().enumerate() {
+            let (_, rpdos) = cycles[first + k];
+            for axis in 0..3 {
+                assert_eq!(
+                    rpdos[axis],
+                    Some((0x1F, to_wire(point[axis]))),
+                    "set-point {k}"
+                );
+            }
+        }
+        assert_eq!(bench.session.progress(), (sp.points.len(), sp.points.len()));
+        // Disabled after settling: bit 4 gone with the disable voltage.
+        let last = cycles.last().unwrap().1;
+        assert_eq!(last.map(|r| r.unwrap().0), [0x00; 3]);
+        for (k, drive) in bench.drives.iter().enumerate() {
+            assert_eq!(i64::from(drive.position()), sp.end()[k]);
+            assert_eq!(i64::from(drive.interpolation_data()), sp.end()[k]);
+            assert_eq!(drive.target(), 0, "607Ah is not the set-point in IP mode");
+            assert_eq!(drive.power_state(), SimPower::SwitchOnDisabled);
+        }
+    }
+
+    #[test]
+    fn set_points_wait_until_every_drive_shows_ip_mode_active() {
+        // Node 2 shows ip mode inactive for its first three TPDOs in Operation enabled
+        // with bit 4 (a drive slow to take it up): everyone is held at the start meanwhile.
+        let mut bench = Bench::with(Operation::InterpolatedPosition);
+        let mut held = 3;
+        bench.tamper = Some(Box::new(move |f: CanFrame| {
+            if f.id().raw() == 0x182 && f.data()[..2] == [0x37, 0x12] && held > 0 {
+                held -= 1;
+                let mut data = f.data().to_vec();
+                data[1] = 0x02;
+                return Some(std(0x182, &data));
+            }
+            Some(f)
+        }));
+        bench.run_to_end();
+        assert_eq!(bench.session.phase(), Phase::Finished);
+        let first = bench.enabled_syncs();
+        assert_eq!(first, 8);
+        let cycles = bench.cycles();
+        for axis in 0..3 {
+            let walk: Vec<u16> = cycles[..first]
+                .iter()
+                .filter_map(|c| c.1[axis].map(|r| r.0))
+                .collect();
+            assert_eq!(walk, [0x06, 0x07, 0x0F, 0x1F, 0x1F, 0x1F, 0x1F]);
+        }
+        assert!(cycles[..first]
+            .iter()
+            .all(|c| c.1.iter().flatten().all(|r| r.1 == 0)));
+        // The first set-point went out after node 2's first TPDO with bit 12.
+        let shown = bench
+            .statuswords(2)
+            .into_iter()
+            .find(|w| w.1 & 0x1000 != 0)
+            .unwrap();
+        assert_eq!(shown.0, cycles[first - 1].0);
+        let sp = setpoints(Pose::known(0.0, 0.0, 0.0));
+        assert_eq!(cycles[first].1[1], Some((0x1F, to_wire(sp.points[0][1]))));
+        // A drive that never shows it times out, named for what it lacks.
+        let mut bench = Bench::with(Operation::InterpolatedPosition);
+        bench.tamper = Some(statusword(2, 0x0237));
+        bench.run_to_end();
+        assert_eq!(bench.session.progress().0, 0);
+        assert_eq!(
+            bench.stopped().unwrap().to_string(),
+            "node 2 (Z) not in Operation enabled after 100ms: OperationEnabled (statusword \
+             0x0237) without ip mode active (bit 12)"
+        );
+    }
+
+    #[test]
+    fn an_ip_drive_leaving_ip_mode_while_running_stops_the_job() {
+        let mut bench = Bench::with(Operation::InterpolatedPosition);
+        bench.run_until(|s| s.progress().0 == 10);
+        // One TPDO of node 3 shows Operation enabled without ip mode active.
+        let mut once = true;
+        bench.tamper = Some(Box::new(move |f: CanFrame| {
+            if f.id().raw() == 0x183 && once {
+                once = false;
+                let mut data = f.data().to_vec();
+                data[..2].copy_from_slice(&0x0237u16.to_le_bytes());
+                return Some(std(0x183, &data));
+            }
+            Some(f)
+        }));
+        bench.run_to_end();
+        let reason = bench.stopped().unwrap();
+        assert_eq!(
+            *reason,
+            StopReason::IpModeInactive {
+                node: node(3),
+                axis: Axis::C,
+                statusword: 0x0237
+            }
+        );
+        assert_eq!(
+            reason.to_string(),
+            "node 3 (C) left interpolated position mode: statusword 0x0237 shows ip mode \
+             inactive (bit 12), its set-points ignored"
+        );
+        assert!(bench.session.progress().0 < 12);
+        // Quick stop, then disable voltage: neither with bit 4.
+        let cycles = bench.cycles();
+        let stop = cycles
+            .iter()
+            .position(|c| c.1[0].is_some_and(|r| r.0 == 0x02))
+            .unwrap();
+        assert!(cycles[stop..]
+            .iter()
+            .all(|c| c.1.iter().flatten().all(|r| r.0 & 0x10 == 0)));
+        assert_eq!(bench.halted(), Some(&vec![]));
+        assert!(bench
+            .drives
+            .iter()
+            .all(|d| d.power_state() == SimPower::SwitchOnDisabled));
+    }
+
+    #[test]
+    fn every_set_point_is_executed_once_in_either_mode() {
+        let sp = setpoints(Pose::known(0.0, 0.0, 0.0));
+        for operation in [
+            Operation::CyclicSynchronousPosition,
+            Operation::InterpolatedPosition,
+        ] {
+            let mut bench = Bench::with(operation);
+            bench.run_to_end();
+            assert_eq!(bench.session.phase(), Phase::Finished, "{operation}");
+            for (k, drive) in bench.drives.iter_mut().enumerate() {
+                // The drive's own record of the cycles it followed set-points in.
+                let executed: Vec<(i32, i32)> = drive
+                    .take_events()
+                    .into_iter()
+                    .filter_map(|e| match e {
+                        SimEvent::Cycle { target, actual, .. } => Some((target, actual)),
+                        _ => None,
+                    })
+                    .collect();
+                // The enabling cycle at the start, then each set-point once, in order,
+                // then (if any) the end held while the session saw it settle.
+                let mut expected = vec![to_wire(sp.start[k])];
+                expected.extend(sp.points.iter().map(|p| to_wire(p[k])));
+                assert!(executed.len() >= expected.len(), "{operation}, node {k}");
+                let (head, rest) = executed.split_at(expected.len());
+                let set_points: Vec<i32> = head.iter().map(|c| c.0).collect();
+                assert_eq!(set_points, expected, "{operation}, node {k}");
+                assert!(rest.iter().all(|c| c.0 == to_wire(sp.end()[k])));
+                // Each cycle ended at its set-point: the drives kept up.
+                assert!(executed.iter().all(|(target, actual)| target == actual));
+            }
+        }
     }
 
     #[test]

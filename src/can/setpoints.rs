@@ -2,7 +2,8 @@
 //! fixed cycle period into one (X, Z, C) target a cycle, in drive counts.
 //!
 //! In CSP mode (CiA 402, mode 8) the drives interpolate nothing: each SYNC they take the
-//! target position the master sent in the cycle before and close their loops on it. So
+//! target position the master sent in the cycle before and close their loops on it (in
+//! interpolated position mode, 7, the same set-points go in 60C1h). So
 //! the master is the interpolator, and the three drives stay coordinated only if all three
 //! targets of a cycle are the same instant of the same straight move. [`sample`] computes
 //! every cycle's targets before the first SYNC, so the cyclic phase only reads an array

@@ -20,7 +20,7 @@ use whirl::can::canopen::NodeId;
 use whirl::can::session::{SessionConfig, StopReason};
 use whirl::can::setpoints::{sample, SetPoints};
 use whirl::can::slcan::Bitrate;
-use whirl::connection::DriveSettings;
+use whirl::connection::{DriveMode, DriveSettings};
 use whirl::exec_log::{self, ExecLog};
 use whirl::gcode::program::{Axis, Block, Pose, Program};
 use whirl::machine::MachineProfile;
@@ -229,8 +229,22 @@ fn counts(position: Position, scale: [f64; 3]) -> [i64; 3] {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_short_job_runs_over_the_wire_and_every_set_point_executes_once() {
+    every_set_point_executes_once(DriveMode::Csp).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn in_interpolated_position_mode_every_set_point_executes_once_too() {
+    every_set_point_executes_once(DriveMode::Ip).await;
+}
+
+/// A short job over the wire with the drives in `mode`: every set-point executed once, in
+/// order, each cycle one period, the drives disabled at the path's end.
+async fn every_set_point_executes_once(mode: DriveMode) {
     let profile = profile();
-    let drives = drive_settings(&profile);
+    let drives = DriveSettings {
+        mode,
+        ..drive_settings(&profile)
+    };
     let program = program(&profile);
     let expected: SetPoints = sample(
         &program,

@@ -433,7 +433,12 @@ fn a_groove_too_long_for_a_32_bit_controllers_c_is_refused_naming_how_far_c_goes
 /// `whirl ARGS…` that must fail: its exit code 1 and its message.
 fn fails(args: &[&OsStr]) -> String {
     let o = util::whirl(args);
-    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stdout));
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
     String::from_utf8_lossy(&o.stderr).into()
 }
 
@@ -452,7 +457,10 @@ fn can_transports_without_drives_or_a_port_are_refused_before_anything_is_opened
         log.as_os_str(),
     ]);
     assert!(message.contains("has no CAN drives"), "{message}");
-    assert!(message.contains("machine-profiles/canopen-drives.toml"), "{message}");
+    assert!(
+        message.contains("machine-profiles/canopen-drives.toml"),
+        "{message}"
+    );
     // The simulated drives hang off an slcan adapter, not a socketcan interface.
     let profile = util::root().join("machine-profiles/canopen-drives.toml");
     let message = fails(&[

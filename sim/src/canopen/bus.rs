@@ -11,8 +11,9 @@
 //! for the first) to where they are now, spanning the time from that SYNC to this one
 //! (one interpolation period with the clock locked to SYNC; see [Time](#time)), of kind
 //! inverse time (a duration, not a feed), its `line` the SYNC's ordinal (from 1) and
-//! no N word. Its `target` is the drives' target positions (607Ah) and `completed` says
-//! whether they got there; a cycle cut short shows one phase at the speed of the distance
+//! no N word. Its `target` is the drives' set-points (607Ah, or 60C1h sub-index 1 in
+//! interpolated position mode: [`Drive::set_point`]) and `completed` says whether they
+//! got there; a cycle cut short shows one phase at the speed of the distance
 //! actually moved. Replayed in order, the blocks are the path the drives followed, at the
 //! cycle's resolution.
 //!
@@ -427,7 +428,7 @@ impl Bus {
         let actual: [i64; 3] =
             std::array::from_fn(|k| unwrap_near(self.drives[k].position(), self.positions[k]));
         let target: [i64; 3] =
-            std::array::from_fn(|k| unwrap_near(self.drives[k].target(), actual[k]));
+            std::array::from_fn(|k| unwrap_near(self.drives[k].set_point(), actual[k]));
         let now = self.now.as_secs_f64();
         let (from, to) = (self.units(self.positions), self.units(actual));
         let moved = (0..3)

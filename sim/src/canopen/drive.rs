@@ -21,7 +21,8 @@
 //! - **PDOs**, the four of each predefined direction (1400h–1403h, 1600h–1603h,
 //!   1800h–1803h, 1A00h–1A03h), 11-bit COB-IDs only. Power-on mapping: RPDO1 = 6040h,
 //!   607Ah and TPDO1 = 6041h, 6064h, both transmission type 1, the others invalid and
-//!   empty. Mapping follows CiA 301's procedure, and the aborts CANopenNode gives for
+//!   empty. RPDOs can carry 6040h, 6060h, 607Ah and 60C1h sub-index 1; TPDOs 6041h, 6061h
+//!   and 6064h. Mapping follows CiA 301's procedure, and the aborts CANopenNode gives for
 //!   breaking it: changing a mapping while the PDO is valid, or an entry while sub-index 0
 //!   is not 0, 0x06010000; an object that cannot be mapped (or with another bit length)
 //!   0x06040041; more than 8 entries or 64 bits 0x06040042; making a PDO valid with no
@@ -43,30 +44,43 @@
 //!   (quick stop option code 6) until disable voltage (12) or enable operation (16).
 //!   Not ready to switch on and Fault reaction active pass instantly.
 //! - Statusword: the state's bits, bit 4 (voltage enabled: mains are always on), bit 9
-//!   (remote), bit 12 in cyclic synchronous position mode while operation is enabled (the
-//!   drive follows the target), bit 13 after a following error.
-//! - Modes (6060h, shown in 6061h): 0 (none) and 8 (cyclic synchronous position); others
-//!   abort 0x06090030.
+//!   (remote), bit 12 while the mode's set-points are followed (in cyclic synchronous
+//!   position mode with operation enabled: the drive follows the target; in interpolated
+//!   position mode, "ip mode active": operation enabled and controlword bit 4, "enable ip
+//!   mode", set), bit 13 after a following error.
+//! - Modes (6060h, shown in 6061h): 0 (none), 7 (interpolated position) and 8 (cyclic
+//!   synchronous position); others abort 0x06090030.
+//! - Interpolated position mode's data record (60C1h): sub-index 0 the number of entries,
+//!   1 (UNSIGNED8, read-only); sub-index 1 the position set-point (INTEGER32), the one
+//!   entry linear interpolation needs, the position actual value at power-up and reset
+//!   node, as 607Ah. Only synchronous operation is modelled: one set-point a SYNC, no
+//!   buffer (60C4h) and no other sub-mode (60C0h) in the dictionary; with one control
+//!   cycle a SYNC the drive's linear interpolation between two set-points is the step from
+//!   one to the next.
 //! - Interpolation time period (60C2h): sub-index 1 the value (UNSIGNED8), 2 the index
 //!   (INTEGER8), the period being value × 10^index s; 1 ms at power-up. The master writes
 //!   its SYNC period here, and a bus locked to SYNC ([`super::Bus::lock_clock_to_sync`])
 //!   runs one period a cycle. A value of 0 (no cycle at all) and an index outside −6…0
 //!   (below a microsecond, above the unit) abort 0x06090030: CiA 402 leaves the range to
 //!   the device, and a drive's control cycle is neither zero nor finer than 1 µs.
-//! - Each SYNC is one control cycle: synchronous RPDOs are applied, then in CSP with
-//!   operation enabled the actual position (6064h) moves towards the target (607Ah) by at
-//!   most [`DriveConfig::max_step`] counts, then the following error is checked, then the
-//!   synchronous TPDOs are sent, so they show the cycle's result.
-//! - Following error: |607Ah − 6064h| beyond 6065h after a cycle (6066h, the time-out, is
-//!   taken as 0) faults the drive with EMCY 0x8611, error register 0x01 (generic). 6065h
-//!   = FFFFFFFFh switches the check off, as CiA 402 says. The fault reset sends EMCY 0x0000.
-//!   The drive does not move its target to its position on enable: a master that enables
-//!   with a stale target sees the jump, or the fault.
+//! - Each SYNC is one control cycle: synchronous RPDOs are applied, then the actual
+//!   position (6064h) moves towards the mode's set-point by at most
+//!   [`DriveConfig::max_step`] counts, then the following error is checked, then the
+//!   synchronous TPDOs are sent, so they show the cycle's result. The set-point is the
+//!   target position (607Ah) in CSP with operation enabled, 60C1h sub-index 1 in
+//!   interpolated position mode while ip mode is active; otherwise (ip mode inactive, no
+//!   mode, any other state) the drive holds where it is and checks nothing.
+//! - Following error: |set-point − 6064h| beyond 6065h after a cycle (6066h, the time-out,
+//!   is taken as 0) faults the drive with EMCY 0x8611, error register 0x01 (generic).
+//!   6065h = FFFFFFFFh switches the check off, as CiA 402 says. The fault reset sends EMCY
+//!   0x0000. The drive does not move its set-point to its position on enable (or, in
+//!   interpolated position mode, when ip mode becomes active): a master that enables with
+//!   a stale one sees the jump, or the fault.
 //! - Positions count modulo 2³², as a drive's do with its position range limit (607Bh) at
 //!   INTEGER32's full range: the way to a target and the following error are the wrapping
 //!   difference, so a rotary axis can turn past ±2³¹ counts (a whirling job's C does).
 //! - Software position limits ([`DriveConfig::software_limits`], 607Dh's values; the
-//!   object itself is not in the dictionary): a target outside them, when a cycle would
+//!   object itself is not in the dictionary): a set-point outside them, when a cycle would
 //!   move towards it, faults the drive with EMCY 0x8612 before it moves.
 //! - [`Drive::external_fault`]: a fault from outside CANopen (a machine's safety chain).
 
@@ -104,6 +118,12 @@ pub const EMCY_POSITION_LIMIT: u16 = 0x8612;
 const INTERPOLATION_POWER_ON: (u8, i8) = (1, -3);
 /// The interpolation time indices the drive takes: 1 µs to 1 s units.
 const INTERPOLATION_INDICES: std::ops::RangeInclusive<i8> = -6..=0;
+/// 6060h: interpolated position mode.
+const MODE_IP: i8 = 7;
+/// 6060h: cyclic synchronous position mode.
+const MODE_CSP: i8 = 8;
+/// Controlword bit 4 in interpolated position mode: enable ip mode.
+const ENABLE_IP_MODE: u16 = 1 << 4;
 
 /// How a drive is built.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -217,12 +237,13 @@ pub enum DriveEvent {
         /// The EMCY error code.
         code: u16,
     },
-    /// A control cycle (SYNC) in cyclic synchronous position mode with operation enabled.
+    /// A control cycle (SYNC) following set-points: in cyclic synchronous position mode
+    /// with operation enabled, or in interpolated position mode with ip mode active.
     Cycle {
         /// Simulated time.
         #[serde(serialize_with = "seconds")]
         time: Duration,
-        /// 607Ah.
+        /// The set-point: 607Ah (CSP) or 60C1h sub-index 1 (interpolated position).
         target: i32,
         /// 6064h after the cycle.
         actual: i32,
@@ -302,6 +323,8 @@ pub struct Drive {
     controlword: u16,
     mode: i8,
     target: i32,
+    /// 60C1h sub-index 1.
+    interpolation_data: i32,
     actual: i32,
     window: u32,
     following_error: bool,
@@ -330,6 +353,7 @@ impl Drive {
             controlword: 0,
             mode: 0,
             target: config.position,
+            interpolation_data: config.position,
             actual: config.position,
             window: config.following_error_window,
             following_error: false,
@@ -364,6 +388,21 @@ impl Drive {
     /// Target position (607Ah), counts.
     pub fn target(&self) -> i32 {
         self.target
+    }
+
+    /// Interpolated position mode's set-point (60C1h sub-index 1), counts.
+    pub fn interpolation_data(&self) -> i32 {
+        self.interpolation_data
+    }
+
+    /// The set-point object of the drive's mode of operation, counts: 60C1h sub-index 1 in
+    /// interpolated position mode, the target position (607Ah) otherwise.
+    pub fn set_point(&self) -> i32 {
+        if self.mode == MODE_IP {
+            self.interpolation_data
+        } else {
+            self.target
+        }
     }
 
     /// Simulated time.
@@ -441,7 +480,7 @@ impl Drive {
             PowerState::Fault => 0x08,
         };
         let mut word = state | 1 << 4 | 1 << 9;
-        if self.csp_running() {
+        if self.following() {
             word |= 1 << 12;
         }
         if self.following_error {
@@ -450,8 +489,24 @@ impl Drive {
         word
     }
 
-    fn csp_running(&self) -> bool {
-        self.power == PowerState::OperationEnabled && self.mode == 8
+    /// The set-point a control cycle steers to: 607Ah in CSP with operation enabled,
+    /// 60C1h sub-index 1 in interpolated position mode with ip mode active (operation
+    /// enabled and controlword bit 4), none otherwise.
+    fn active_set_point(&self) -> Option<i32> {
+        if self.power != PowerState::OperationEnabled {
+            return None;
+        }
+        match self.mode {
+            MODE_CSP => Some(self.target),
+            MODE_IP if self.controlword & ENABLE_IP_MODE != 0 => Some(self.interpolation_data),
+            _ => None,
+        }
+    }
+
+    /// Statusword bit 12: CSP's "drive follows the command value", interpolated position
+    /// mode's "ip mode active".
+    fn following(&self) -> bool {
+        self.active_set_point().is_some()
     }
 
     fn send(&mut self, function: u16, data: &[u8]) {
@@ -495,6 +550,7 @@ impl Drive {
         self.controlword = 0;
         self.mode = 0;
         self.target = self.actual;
+        self.interpolation_data = self.actual;
         self.window = self.config.following_error_window;
         self.following_error = false;
         self.error_register = 0;
@@ -590,25 +646,8 @@ impl Drive {
                 }
             }
         }
-        let outside = |(min, max): (i32, i32)| !(min..=max).contains(&self.target);
-        let moving = self.target != self.actual;
-        if self.csp_running() && moving && self.config.software_limits.is_some_and(outside) {
-            self.fault(EMCY_POSITION_LIMIT);
-        } else if self.csp_running() {
-            // Modulo 2^32: the shorter way round, as the drive's position counter wraps.
-            let step = i64::from(self.config.max_step);
-            let gap = i64::from(self.target.wrapping_sub(self.actual));
-            self.actual = self.actual.wrapping_add(gap.clamp(-step, step) as i32);
-            self.events.push(DriveEvent::Cycle {
-                time: self.now,
-                target: self.target,
-                actual: self.actual,
-            });
-            let error = i64::from(self.target.wrapping_sub(self.actual)).unsigned_abs();
-            if self.window != u32::MAX && error > u64::from(self.window) {
-                self.following_error = true;
-                self.fault(EMCY_FOLLOWING_ERROR);
-            }
+        if let Some(set_point) = self.active_set_point() {
+            self.control_cycle(set_point);
         }
         if self.nmt == NmtState::Operational {
             for k in 0..4 {
@@ -626,6 +665,31 @@ impl Drive {
                     }
                 }
             }
+        }
+    }
+
+    /// One control cycle towards `set_point`: the software limits, the step, the
+    /// following error.
+    fn control_cycle(&mut self, set_point: i32) {
+        let outside = |(min, max): (i32, i32)| !(min..=max).contains(&set_point);
+        let moving = set_point != self.actual;
+        if moving && self.config.software_limits.is_some_and(outside) {
+            self.fault(EMCY_POSITION_LIMIT);
+            return;
+        }
+        // Modulo 2^32: the shorter way round, as the drive's position counter wraps.
+        let step = i64::from(self.config.max_step);
+        let gap = i64::from(set_point.wrapping_sub(self.actual));
+        self.actual = self.actual.wrapping_add(gap.clamp(-step, step) as i32);
+        self.events.push(DriveEvent::Cycle {
+            time: self.now,
+            target: set_point,
+            actual: self.actual,
+        });
+        let error = i64::from(set_point.wrapping_sub(self.actual)).unsigned_abs();
+        if self.window != u32::MAX && error > u64::from(self.window) {
+            self.following_error = true;
+            self.fault(EMCY_FOLLOWING_ERROR);
         }
     }
 
@@ -774,6 +838,18 @@ impl Drive {
             0x6064 => var(4, false, self.actual as u32),
             0x6065 => var(4, true, self.window),
             0x607A => var(4, true, self.target as u32),
+            0x60C1 => {
+                let (size, writable, value) = match sub {
+                    0 => (1, false, 1),
+                    1 => (4, true, self.interpolation_data as u32),
+                    _ => return Err(abort::NO_SUB),
+                };
+                Ok(Entry {
+                    size,
+                    writable,
+                    value,
+                })
+            }
             0x60C2 => {
                 let (value, index) = self.interpolation;
                 let (writable, value) = match sub {
@@ -850,11 +926,13 @@ impl Drive {
             }
             0x6040 => self.command(value as u16),
             0x6060 => match value as u8 as i8 {
-                mode @ (0 | 8) => self.mode = mode,
+                mode @ (0 | MODE_IP | MODE_CSP) => self.mode = mode,
                 _ => return Err(abort::INVALID),
             },
             0x6065 => self.window = value,
             0x607A => self.target = value as i32,
+            // Sub-index 0 is read-only: only sub-index 1 gets here.
+            0x60C1 => self.interpolation_data = value as i32,
             0x60C2 => self.write_interpolation(sub, value as u8)?,
             0x1400..=0x1403 | 0x1800..=0x1803 => self.write_communication(index, sub, value)?,
             0x1600..=0x1603 | 0x1A00..=0x1A03 => self.write_mapping(index, sub, value)?,
@@ -935,14 +1013,15 @@ impl Drive {
     }
 }
 
-/// The objects a PDO can carry, as mapping values (index, sub-index 0, bit length).
+/// The objects a PDO can carry, as mapping values (index, sub-index, bit length).
 fn mappable(receive: bool, raw: u32) -> bool {
-    let allowed: [u32; 3] = if receive {
-        [0x6040_0010, 0x607A_0020, 0x6060_0008]
+    const RECEIVE: [u32; 4] = [0x6040_0010, 0x607A_0020, 0x6060_0008, 0x60C1_0120];
+    const TRANSMIT: [u32; 3] = [0x6041_0010, 0x6064_0020, 0x6061_0008];
+    if receive {
+        RECEIVE.contains(&raw)
     } else {
-        [0x6041_0010, 0x6064_0020, 0x6061_0008]
-    };
-    allowed.contains(&raw)
+        TRANSMIT.contains(&raw)
+    }
 }
 
 /// Power-on PDOs: RPDO1 = controlword + target, TPDO1 = statusword + actual position,
@@ -1076,6 +1155,34 @@ mod tests {
         }
         assert_eq!(drive.power_state(), PowerState::OperationEnabled);
         drive
+    }
+
+    /// Node 1 in interpolated position mode with RPDO1 remapped to controlword and
+    /// 60C1h sub-index 1 (CiA 301's procedure), started; output drained.
+    fn interpolating(config: DriveConfig) -> Drive {
+        let mut drive = booted(config);
+        write(&mut drive, 0x6060, 0, 7, 1).unwrap();
+        write(&mut drive, 0x1400, 1, 0x8000_0201, 4).unwrap();
+        write(&mut drive, 0x1600, 0, 0, 1).unwrap();
+        write(&mut drive, 0x1600, 1, 0x6040_0010, 4).unwrap();
+        write(&mut drive, 0x1600, 2, 0x60C1_0120, 4).unwrap();
+        write(&mut drive, 0x1600, 0, 2, 1).unwrap();
+        write(&mut drive, 0x1400, 1, 0x0000_0201, 4).unwrap();
+        drive.receive(&Frame::data(0x000, &[0x01, 0x01]));
+        drive.take_output();
+        drive
+    }
+
+    /// The (set-point, actual) of each control cycle since the last call.
+    fn cycles(drive: &mut Drive) -> Vec<(i32, i32)> {
+        drive
+            .take_events()
+            .into_iter()
+            .filter_map(|e| match e {
+                DriveEvent::Cycle { target, actual, .. } => Some((target, actual)),
+                _ => None,
+            })
+            .collect()
     }
 
     #[test]
@@ -1231,7 +1338,7 @@ mod tests {
         assert_eq!(write(&mut drive, 0x1800, 0, 5, 1), Err(0x0601_0002));
         assert_eq!(write(&mut drive, 0x607A, 0, 0, 2), Err(0x0607_0013));
         assert_eq!(write(&mut drive, 0x6040, 0, 6, 4), Err(0x0607_0012));
-        assert_eq!(write(&mut drive, 0x6060, 0, 7, 1), Err(0x0609_0030));
+        assert_eq!(write(&mut drive, 0x6060, 0, 1, 1), Err(0x0609_0030));
         assert_eq!(write(&mut drive, 0x6060, 0, 0xFF, 1), Err(0x0609_0030));
         // A segmented download (e = 0) and the segment services are not served.
         let segmented = [0x21, 0x7A, 0x60, 0, 4, 0, 0, 0];
@@ -1719,5 +1826,214 @@ mod tests {
             drive.receive(&frame);
             assert!(drive.take_output().is_empty(), "{frame:?}");
         }
+    }
+    #[test]
+    fn interpolated_position_mode_7_is_accepted_and_displayed() {
+        let mut drive = booted(DriveConfig::new(1));
+        // CiA 402: 6060h = 7 selects interpolated position mode; 6061h shows it.
+        write(&mut drive, 0x6060, 0, 7, 1).unwrap();
+        assert_eq!(read(&mut drive, 0x6060, 0), Ok((0x4F, 7)));
+        assert_eq!(read(&mut drive, 0x6061, 0), Ok((0x4F, 7)));
+        // Profile position, homing, the cyclic synchronous velocity and torque modes are
+        // not the sim's: refused, and the mode stays.
+        for mode in [1, 6, 9, 10] {
+            assert_eq!(write(&mut drive, 0x6060, 0, mode, 1), Err(0x0609_0030));
+        }
+        assert_eq!(read(&mut drive, 0x6061, 0), Ok((0x4F, 7)));
+        write(&mut drive, 0x6060, 0, 8, 1).unwrap();
+        assert_eq!(read(&mut drive, 0x6061, 0), Ok((0x4F, 8)));
+        // Reset node: no mode.
+        drive.receive(&Frame::data(0x000, &[0x81, 0x01]));
+        assert_eq!(read(&mut drive, 0x6061, 0), Ok((0x4F, 0)));
+    }
+
+    #[test]
+    fn the_interpolation_data_record_60c1h_is_read_and_written_by_sdo() {
+        let mut drive = booted(DriveConfig {
+            position: -7,
+            ..DriveConfig::new(1)
+        });
+        // Sub-index 0: one entry (the position set-point of linear interpolation), one
+        // byte, read-only; sub-index 1: INTEGER32, the position actual value at power-up.
+        assert_eq!(read(&mut drive, 0x60C1, 0), Ok((0x4F, 1)));
+        assert_eq!(write(&mut drive, 0x60C1, 0, 2, 1), Err(0x0601_0002));
+        assert_eq!(read(&mut drive, 0x60C1, 1), Ok((0x43, -7i32 as u32)));
+        assert_eq!(drive.interpolation_data(), -7);
+        write(&mut drive, 0x60C1, 1, -123_456i32 as u32, 4).unwrap();
+        assert_eq!(read(&mut drive, 0x60C1, 1), Ok((0x43, -123_456i32 as u32)));
+        assert_eq!(drive.interpolation_data(), -123_456);
+        // Four bytes, no more, no fewer; no sub-index 2.
+        assert_eq!(write(&mut drive, 0x60C1, 1, 5, 2), Err(0x0607_0013));
+        assert_eq!(write(&mut drive, 0x60C1, 1, 5, 1), Err(0x0607_0013));
+        assert_eq!(write(&mut drive, 0x60C1, 0, 1, 4), Err(0x0601_0002));
+        assert_eq!(read(&mut drive, 0x60C1, 2), Err(0x0609_0011));
+        assert_eq!(write(&mut drive, 0x60C1, 2, 0, 4), Err(0x0609_0011));
+        assert_eq!(drive.interpolation_data(), -123_456);
+        // 607Ah is another object: untouched.
+        assert_eq!(drive.target(), -7);
+        // The mode's set-point: 607Ah outside interpolated position mode, 60C1h in it.
+        assert_eq!(drive.set_point(), -7);
+        write(&mut drive, 0x6060, 0, 7, 1).unwrap();
+        assert_eq!(drive.set_point(), -123_456);
+        // A profile object: reset communication keeps it, reset node restores it.
+        drive.receive(&Frame::data(0x000, &[0x82, 0x01]));
+        assert_eq!(drive.interpolation_data(), -123_456);
+        drive.receive(&Frame::data(0x000, &[0x81, 0x01]));
+        assert_eq!(drive.interpolation_data(), -7);
+    }
+
+    #[test]
+    fn interpolation_data_maps_into_rpdos_only() {
+        let mut drive = operational();
+        write(&mut drive, 0x1400, 1, 0x8000_0201, 4).unwrap();
+        write(&mut drive, 0x1600, 0, 0, 1).unwrap();
+        // Sub-index 0 (the count) and another length are not the set-point.
+        assert_eq!(
+            write(&mut drive, 0x1600, 1, 0x60C1_0020, 4),
+            Err(0x0604_0041)
+        );
+        assert_eq!(
+            write(&mut drive, 0x1600, 1, 0x60C1_0008, 4),
+            Err(0x0604_0041)
+        );
+        assert_eq!(
+            write(&mut drive, 0x1600, 1, 0x60C1_0110, 4),
+            Err(0x0604_0041)
+        );
+        assert_eq!(
+            write(&mut drive, 0x1600, 1, 0x60C1_0220, 4),
+            Err(0x0604_0041)
+        );
+        write(&mut drive, 0x1600, 1, 0x60C1_0120, 4).unwrap();
+        assert_eq!(read(&mut drive, 0x1600, 1), Ok((0x43, 0x60C1_0120)));
+        // The master's input, not the drive's output: no TPDO carries it.
+        write(&mut drive, 0x1800, 1, 0xC000_0181, 4).unwrap();
+        write(&mut drive, 0x1A00, 0, 0, 1).unwrap();
+        assert_eq!(
+            write(&mut drive, 0x1A00, 1, 0x60C1_0120, 4),
+            Err(0x0604_0041)
+        );
+    }
+
+    #[test]
+    fn ip_mode_is_active_only_with_bit_4_in_operation_enabled() {
+        use PowerState::*;
+        let mut drive = booted(DriveConfig::new(1));
+        write(&mut drive, 0x6060, 0, 7, 1).unwrap();
+        let mut step = |word: u32, expected: PowerState, statusword: u16| {
+            write(&mut drive, 0x6040, 0, word, 2).unwrap();
+            assert_eq!(drive.power_state(), expected, "after {word:02X}");
+            assert_eq!(drive.statusword(), statusword, "after {word:02X}");
+        };
+        // Bit 4 does not take part in the state machine's commands, and below Operation
+        // enabled it activates nothing.
+        step(0x16, ReadyToSwitchOn, 0x0231);
+        step(0x17, SwitchedOn, 0x0233);
+        // Operation enabled without bit 4: ip mode inactive (statusword bit 12 clear).
+        step(0x0F, OperationEnabled, 0x0237);
+        // With bit 4: ip mode active (bit 12).
+        step(0x1F, OperationEnabled, 0x1237);
+        // Bit 4 cleared: inactive again, still Operation enabled.
+        step(0x0F, OperationEnabled, 0x0237);
+        step(0x1F, OperationEnabled, 0x1237);
+        // Leaving Operation enabled ends it, whatever bit 4 says.
+        step(0x17, SwitchedOn, 0x0233);
+        step(0x1F, OperationEnabled, 0x1237);
+        step(0x12, QuickStopActive, 0x0217);
+        step(0x10, SwitchOnDisabled, 0x0250);
+        // In CSP bit 12 does not wait for bit 4.
+        write(&mut drive, 0x6060, 0, 8, 1).unwrap();
+        for word in [0x06, 0x07] {
+            write(&mut drive, 0x6040, 0, word, 2).unwrap();
+        }
+        write(&mut drive, 0x6040, 0, 0x0F, 2).unwrap();
+        assert_eq!(drive.statusword(), 0x1237);
+        // Nor in no mode does bit 4 make it.
+        write(&mut drive, 0x6060, 0, 0, 1).unwrap();
+        write(&mut drive, 0x6040, 0, 0x1F, 2).unwrap();
+        assert_eq!(drive.statusword(), 0x0237);
+    }
+
+    /// RPDO1 as [`interpolating`] maps it: controlword, 60C1h sub-index 1.
+    fn ip_rpdo(drive: &mut Drive, controlword: u16, set_point: i32) -> Vec<Frame> {
+        rpdo1(drive, controlword, set_point);
+        sync(drive)
+    }
+
+    #[test]
+    fn set_points_move_the_drive_only_while_ip_mode_is_active() {
+        let mut drive = interpolating(DriveConfig::new(1));
+        for word in [0x06, 0x07, 0x0F] {
+            ip_rpdo(&mut drive, word, 0);
+        }
+        assert_eq!(drive.power_state(), PowerState::OperationEnabled);
+        // Enabled but ip mode inactive: the set-point is taken into 60C1h, not followed.
+        let frames = ip_rpdo(&mut drive, 0x0F, 500);
+        assert_eq!(drive.interpolation_data(), 500);
+        assert_eq!(drive.position(), 0);
+        assert_eq!(frames, [Frame::data(0x181, &[0x37, 0x02, 0, 0, 0, 0])]);
+        assert!(cycles(&mut drive).is_empty());
+        // Bit 4: ip mode active, and the same SYNC's set-point is followed.
+        let frames = ip_rpdo(&mut drive, 0x1F, 500);
+        assert_eq!(drive.position(), 500);
+        assert_eq!(
+            frames,
+            [Frame::data(0x181, &[0x37, 0x12, 0xF4, 0x01, 0, 0])]
+        );
+        // One set-point a SYNC, at most max_step (1000) counts a cycle, as in CSP.
+        ip_rpdo(&mut drive, 0x1F, 3000);
+        assert_eq!(drive.position(), 1500);
+        ip_rpdo(&mut drive, 0x1F, 3000);
+        assert_eq!(drive.position(), 2500);
+        // Bit 4 cleared: the drive holds where it is, the new set-point ignored.
+        let frames = ip_rpdo(&mut drive, 0x0F, -4000);
+        assert_eq!(drive.position(), 2500);
+        assert_eq!(frames[0].data[..2], [0x37, 0x02]);
+        assert_eq!(cycles(&mut drive), [(500, 500), (3000, 1500), (3000, 2500)]);
+        // 607Ah played no part.
+        assert_eq!(drive.target(), 0);
+        assert_eq!(drive.set_point(), -4000);
+        assert_eq!(drive.power_state(), PowerState::OperationEnabled);
+    }
+
+    #[test]
+    fn ip_set_points_meet_the_following_error_window_and_the_software_limits() {
+        let mut drive = interpolating(DriveConfig {
+            max_step: 10,
+            following_error_window: 100,
+            software_limits: Some((-100, 5000)),
+            ..DriveConfig::new(1)
+        });
+        for word in [0x06, 0x07, 0x0F, 0x1F] {
+            ip_rpdo(&mut drive, word, 0);
+        }
+        // 110 away: 100 remain after the cycle, in the window; 500 away: 480 remain.
+        ip_rpdo(&mut drive, 0x1F, 110);
+        assert_eq!(drive.power_state(), PowerState::OperationEnabled);
+        let frames = ip_rpdo(&mut drive, 0x1F, 500);
+        assert_eq!(drive.position(), 20);
+        assert_eq!(
+            frames,
+            [
+                Frame::data(0x081, &[0x11, 0x86, 0x01, 0, 0, 0, 0, 0]),
+                Frame::data(0x181, &[0x18, 0x22, 20, 0, 0, 0]),
+            ]
+        );
+        // Reset, enable again from where it stands, and a set-point past the limit faults
+        // before it moves, with EMCY 8612h.
+        ip_rpdo(&mut drive, 0x80, 20);
+        for word in [0x06, 0x07, 0x0F, 0x1F] {
+            ip_rpdo(&mut drive, word, 20);
+        }
+        assert_eq!(drive.statusword(), 0x1237);
+        let frames = ip_rpdo(&mut drive, 0x1F, -101);
+        assert_eq!(
+            (drive.power_state(), drive.position()),
+            (PowerState::Fault, 20)
+        );
+        assert_eq!(
+            frames[0],
+            Frame::data(0x081, &[0x12, 0x86, 0x01, 0, 0, 0, 0, 0])
+        );
     }
 }

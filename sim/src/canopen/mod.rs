@@ -11,7 +11,7 @@
 //!   replies and received frames out; frames the host sent go to the bus.
 //! - [`drive`]: a CiA 402 drive. NMT with boot-up and heartbeat, an expedited SDO server
 //!   over a small object dictionary, the power state machine, cyclic synchronous position
-//!   mode driven by RPDO1 on SYNC, TPDO1 back, following-error faults with EMCY.
+//!   (and interpolated position) mode driven by RPDO1 on SYNC, TPDO1 back, following-error faults with EMCY.
 //! - [`bus`]: the whirling lathe's three drives (X, Z, C) behind an adapter as one unit,
 //!   each SYNC's cycle recorded as an executed move, with the Δ guard's seat, travel
 //!   limits, a cable to pull, a fault to inject and a clock that SYNC can drive.
