@@ -44,3 +44,33 @@ pub struct Machine {
     /// Spindle speed range (min, max), rpm, if known.
     pub spindle_rpm: Option<(f64, f64)>,
 }
+
+/// Machines for the crate's tests.
+#[cfg(test)]
+pub(crate) mod test_machines {
+    use super::{Axis, Machine, Number};
+
+    /// whirl-sim's default machine: X −5…160 mm, Z ±300 mm at 3000 mm/min and 500 mm/s²,
+    /// C unlimited at 72 000 °/min and 7200 °/s², 32-bit numbers.
+    pub(crate) fn sim_default() -> Machine {
+        let linear = |min, max| Axis {
+            min: Some(min),
+            max: Some(max),
+            max_rate: 3000.0,
+            accel: 500.0,
+        };
+        Machine {
+            x: linear(-5.0, 160.0),
+            z: linear(-300.0, 300.0),
+            c: Axis {
+                min: None,
+                max: None,
+                max_rate: 72_000.0,
+                accel: 7200.0,
+            },
+            number: Number::F32,
+            max_line_length: 256,
+            spindle_rpm: None,
+        }
+    }
+}

@@ -484,32 +484,12 @@ mod tests {
     use super::*;
     use crate::canopen::PowerState;
     use crate::guard::Measured;
-    use crate::machine::{Axis, Number};
+    use crate::machine::Machine;
 
     const MS: Duration = Duration::from_millis(1);
 
-    /// whirl-sim's default machine: X −5…160 mm, Z ±300 mm at 3000 mm/min, C unlimited
-    /// at 72 000 deg/min.
     fn machine() -> Machine {
-        let linear = |min, max| Axis {
-            min: Some(min),
-            max: Some(max),
-            max_rate: 3000.0,
-            accel: 500.0,
-        };
-        Machine {
-            x: linear(-5.0, 160.0),
-            z: linear(-300.0, 300.0),
-            c: Axis {
-                min: None,
-                max: None,
-                max_rate: 72_000.0,
-                accel: 7200.0,
-            },
-            number: Number::F32,
-            max_line_length: 256,
-            spindle_rpm: None,
-        }
+        crate::machine::test_machines::sim_default()
     }
 
     /// 10 000 counts a mm, 1000 a degree, a 4 ms cycle, at the origin.

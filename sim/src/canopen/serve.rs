@@ -212,34 +212,15 @@ impl Clock {
 mod tests {
     use super::*;
     use crate::canopen::{BusConfig, DriveEvent, PowerState};
-    use crate::machine::{Axis, Machine, Number};
+    use crate::machine::Machine;
     use crate::record::Position;
 
     const MS: Duration = Duration::from_millis(1);
     /// The SYNC period the tests' master runs.
     const PERIOD: Duration = Duration::from_millis(4);
 
-    /// X −5…160 mm, Z ±300 mm, C unlimited: whirl-sim's default travel.
     fn machine() -> Machine {
-        let linear = |min, max| Axis {
-            min: Some(min),
-            max: Some(max),
-            max_rate: 3000.0,
-            accel: 500.0,
-        };
-        Machine {
-            x: linear(-5.0, 160.0),
-            z: linear(-300.0, 300.0),
-            c: Axis {
-                min: None,
-                max: None,
-                max_rate: 72_000.0,
-                accel: 7200.0,
-            },
-            number: Number::F32,
-            max_line_length: 256,
-            spindle_rpm: None,
-        }
+        crate::machine::test_machines::sim_default()
     }
 
     fn bus() -> SharedBus {
