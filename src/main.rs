@@ -749,6 +749,7 @@ fn stream_modbus(
     baud: u32,
     log: &Path,
 ) -> Result<ExitCode> {
+    use whirl::connection::Connection;
     use whirl::transport::modbus::{stream_modbus, ModbusLink, ModbusOptions};
     whirl::transport::check_program(lines, machine)?;
     let program = whirl::gcode::parse::read_program(text, machine.x_diameter())?;
@@ -764,9 +765,18 @@ fn stream_modbus(
         },
     };
     let mut exec_log = whirl::exec_log::ExecLog::append(log)?;
+    // The profile's unit id and answer timeout, where its [connection] is this transport.
+    let defaults = ModbusOptions::default();
+    let (unit, timeout) = match (&machine.connection, transport) {
+        (Some(Connection::ModbusTcp(s)), Transport::ModbusTcp) => (s.unit, s.timeout()),
+        (Some(Connection::ModbusRtu(s)), Transport::ModbusRtu) => (s.unit, s.timeout()),
+        _ => (defaults.unit, defaults.timeout),
+    };
     let options = ModbusOptions {
         program: input.display().to_string(),
-        ..ModbusOptions::default()
+        unit,
+        timeout,
+        ..defaults
     };
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()

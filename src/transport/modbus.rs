@@ -75,6 +75,8 @@ pub struct ModbusOptions {
     pub clock_scale: f64,
     /// What is streamed, for the log.
     pub program: String,
+    /// The controller's unit id (slave address); the map's is 1.
+    pub unit: u8,
 }
 
 impl Default for ModbusOptions {
@@ -87,6 +89,7 @@ impl Default for ModbusOptions {
             max_reconnects: 8,
             clock_scale: 1.0,
             program: String::new(),
+            unit: UNIT_ID,
         }
     }
 }
@@ -350,7 +353,7 @@ async fn connect(link: &ModbusLink, options: &ModbusOptions) -> Result<Context, 
     let mut attempt = 0;
     loop {
         attempt += 1;
-        let tried = tokio::time::timeout(options.timeout, open(link)).await;
+        let tried = tokio::time::timeout(options.timeout, open(link, options.unit)).await;
         let error = match tried {
             Ok(Ok(ctx)) => return Ok(ctx),
             Ok(Err(error)) => error,
@@ -371,19 +374,14 @@ async fn connect(link: &ModbusLink, options: &ModbusOptions) -> Result<Context, 
     }
 }
 
-async fn open(link: &ModbusLink) -> std::io::Result<Context> {
+async fn open(link: &ModbusLink, unit: u8) -> std::io::Result<Context> {
     match link {
-        ModbusLink::Tcp(addr) => {
-            tokio_modbus::client::tcp::connect_slave(*addr, Slave(UNIT_ID)).await
-        }
+        ModbusLink::Tcp(addr) => tokio_modbus::client::tcp::connect_slave(*addr, Slave(unit)).await,
         ModbusLink::Rtu { path, baud } => {
             let port = tokio_serial::new(path, *baud)
                 .open_native_async()
                 .map_err(std::io::Error::other)?;
-            Ok(tokio_modbus::client::rtu::attach_slave(
-                port,
-                Slave(UNIT_ID),
-            ))
+            Ok(tokio_modbus::client::rtu::attach_slave(port, Slave(unit)))
         }
     }
 }

@@ -177,13 +177,11 @@ fn resume_at_streams_from_that_line_behind_a_preamble_and_runs_nothing_before_it
     assert_eq!(executed, (20..=40).collect::<Vec<u64>>());
 }
 
-#[test]
-fn whirl_stream_sends_a_program_through_the_modbus_map_to_whirl_sim_over_tcp() {
+/// whirl-sim serving the Modbus map on a loopback TCP port in real time (whirl stream feeds
+/// the controller's watchdog in wall time, as a bridge to a machine does), logging to
+/// `sim_log`; its address.
+fn modbus_tcp_sim(sim_log: &std::path::Path) -> (Sim, String) {
     use std::io::{BufRead, BufReader};
-    let dir = tempfile::tempdir().unwrap();
-    let sim_log = dir.path().join("sim.jsonl");
-    // Real time: whirl stream feeds the controller's watchdog in wall time, as a bridge to
-    // a machine does.
     let mut child = Command::new(env!("CARGO_BIN_EXE_whirl-sim"))
         .args([
             OsStr::new("--modbus-tcp"),
@@ -207,8 +205,61 @@ fn whirl_stream_sends_a_program_through_the_modbus_map_to_whirl_sim_over_tcp() {
         .strip_prefix("whirl-sim: serving Modbus on ")
         .unwrap_or_else(|| panic!("{banner}"))
         .to_owned();
-    let _sim = Sim(child);
+    (Sim(child), address)
+}
+
+#[test]
+fn whirl_stream_sends_a_program_through_the_modbus_map_to_whirl_sim_over_tcp() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim_log = dir.path().join("sim.jsonl");
+    let (_sim, address) = modbus_tcp_sim(&sim_log);
     stream_through_the_modbus_map(dir.path(), "modbus-tcp", &address, &sim_log);
+}
+
+#[test]
+fn whirl_stream_takes_the_plcs_address_and_unit_from_the_machine_profile() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim_log = dir.path().join("sim.jsonl");
+    let (_sim, address) = modbus_tcp_sim(&sim_log);
+    let plc = std::fs::read_to_string(util::root().join("machine-profiles/modbus-plc.toml"))
+        .unwrap()
+        .replace("192.168.0.10:502", &address)
+        .replace("timeout_ms = 500", "timeout_ms = 100");
+    let program = util::write(
+        dir.path(),
+        "short.nc",
+        "G21 G90 G94\nG0 X0 Z0 C0\nG1 X5 F3000\nG0 X0\nM2\n",
+    );
+    let stream = |profile: &std::path::Path| {
+        util::whirl(&[
+            OsStr::new("stream"),
+            program.as_os_str(),
+            OsStr::new("--machine"),
+            profile.as_os_str(),
+            OsStr::new("--log"),
+            dir.path().join("exec.jsonl").as_os_str(),
+        ])
+    };
+    // No --transport, no --port: the profile's [connection] says Modbus TCP at the
+    // simulator's address, unit 1.
+    let unit_1 = util::write(dir.path(), "plc.toml", &plc);
+    let o = stream(&unit_1);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains(&format!("Modbus TCP {address}")));
+    // Unit 2: the simulator serves unit 1 only and, as a device on a shared line, does
+    // not answer another's requests; the bridge gives up after its retries.
+    let unit_2 = util::write(
+        dir.path(),
+        "plc2.toml",
+        &plc.replace("unit = 1 ", "unit = 2 "),
+    );
+    let o = stream(&unit_2);
+    assert!(!o.status.success());
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        stderr.contains("read 8 registers at 0: no answer after"),
+        "{stderr}"
+    );
 }
 
 #[test]
