@@ -85,8 +85,11 @@ fn can_slcan(name: &str) {
             &machine,
             name,
             &plan.program,
-            drives,
-            whirl::can::slcan::Bitrate::M1,
+            whirl::dry_run::CanDrives {
+                drives,
+                bitrate: whirl::can::slcan::Bitrate::M1,
+                on_progress: None,
+            },
             &mut ExecLog::discard(),
         ))
         .expect("the dry run runs");

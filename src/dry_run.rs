@@ -562,9 +562,18 @@ fn clear_start(program: &crate::gcode::program::Program) -> whirl_sim::Position 
 /// as the link and the simulator allow.
 const CAN_BOOT_TIME_SCALE: f64 = 1.0;
 
+/// The CAN drives of a dry run.
+pub struct CanDrives<'a> {
+    /// Their settings (the machine profile's `[connection.drives]`).
+    pub drives: &'a crate::connection::DriveSettings,
+    /// The bus's bit rate.
+    pub bitrate: crate::can::slcan::Bitrate,
+    /// Progress as the run goes, for a display.
+    pub on_progress: Option<crate::transport::can::CanProgressFn>,
+}
+
 /// Dry-runs `program` (planned for `job` on `machine`) on three simulated CiA 402 drives
-/// behind an slcan adapter on a pseudo-terminal, set as `drives` says, the bus at
-/// `bitrate`: whirl's CANopen
+/// behind an slcan adapter on a pseudo-terminal, set as `can` says: whirl's CANopen
 /// master streams the set-points through the adapter in lockstep with the drives' SYNC
 /// clock ([`crate::transport::can::CanClock::SyncLocked`]), and the Δ guard judges the
 /// cycles the drives executed, merged into the straight stretches they make up
@@ -577,11 +586,15 @@ pub async fn dry_run_can(
     machine: &MachineProfile,
     name: &str,
     program: &crate::gcode::program::Program,
-    drives: &crate::connection::DriveSettings,
-    bitrate: crate::can::slcan::Bitrate,
+    can: CanDrives<'_>,
     log: &mut ExecLog,
 ) -> Result<DryRunReport, DryRunError> {
     use crate::transport::can::{stream_can, CanClock, CanLink, CanOptions};
+    let CanDrives {
+        drives,
+        bitrate,
+        on_progress,
+    } = can;
     use whirl_sim::canopen::serve::{serve_slcan, ServeOptions};
     use whirl_sim::canopen::{Bus, BusConfig, BusEvent};
 
@@ -621,6 +634,7 @@ pub async fn dry_run_can(
         clock: CanClock::SyncLocked,
         answer_timeout: Duration::from_secs(5),
         program: name.to_owned(),
+        on_progress,
     };
     let serve_options = ServeOptions {
         time_scale: CAN_BOOT_TIME_SCALE,

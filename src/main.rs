@@ -437,6 +437,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 None => whirl::exec_log::ExecLog::discard(),
             };
             let bar = progress_bar(lines.len());
+            let on_can_progress = bar.as_ref().map(Progress::can_callback);
             let options = whirl::dry_run::DryRunOptions {
                 time_scale: time_scale.filter(|s| *s > 0.0),
                 baud,
@@ -482,6 +483,11 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     }
                     Transport::CanSlcan | Transport::Can => {
                         let (drives, bitrate) = can.expect("settled above");
+                        let can = whirl::dry_run::CanDrives {
+                            drives,
+                            bitrate,
+                            on_progress: on_can_progress,
+                        };
                         let program =
                             whirl::gcode::parse::read_program(&text, machine.x_diameter())
                                 .with_context(|| format!("cannot read {name}"))?;
@@ -490,8 +496,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                             &machine,
                             &name,
                             &program,
-                            drives,
-                            bitrate,
+                            can,
                             &mut exec_log,
                         )
                         .await
@@ -682,18 +687,24 @@ fn stream_can(
             bitrate: can_bitrate(machine)?,
         },
     };
+    let bar = progress_bar(0);
     let options = CanOptions {
         session: drives.session_config()?,
         sample: drives.sample_config(machine),
         clock: CanClock::Wall,
         answer_timeout: std::time::Duration::from_secs(1),
         program: input.display().to_string(),
+        on_progress: bar.as_ref().map(Progress::can_callback),
     };
     let mut exec_log = whirl::exec_log::ExecLog::append(log)?;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()?;
-    let outcome = runtime.block_on(stream_can(&can_link, &program, options, &mut exec_log))?;
+    let outcome = runtime.block_on(stream_can(&can_link, &program, options, &mut exec_log));
+    if let Some(bar) = bar {
+        bar.finish();
+    }
+    let outcome = outcome?;
     println!(
         "{}: {} of {} set-points over {can_link} in {:.1} s; {} late cycles",
         input.display(),
@@ -822,12 +833,26 @@ impl Progress {
         })
     }
 
+    /// The same for a CAN run, which counts set-points.
+    fn can_callback(&self) -> whirl::transport::can::CanProgressFn {
+        let bar = self.0.clone();
+        Box::new(move |p: &whirl::transport::can::CanProgress| {
+            bar.set_length(p.total as u64);
+            bar.set_position(p.sent as u64);
+            bar.set_message(format!(
+                "set-points, {} of machine time left",
+                indicatif::HumanDuration(p.left)
+            ));
+        })
+    }
+
     fn finish(self) {
         self.0.finish_and_clear();
     }
 }
 
-/// `Some` only when stderr is a terminal: logs and pipes get no bar.
+/// `Some` only when stderr is a terminal: logs and pipes get no bar. Its length is the
+/// program's lines; a CAN run's callback sets it to the set-points.
 fn progress_bar(lines: usize) -> Option<Progress> {
     use std::io::IsTerminal;
     if !std::io::stderr().is_terminal() {
@@ -835,7 +860,7 @@ fn progress_bar(lines: usize) -> Option<Progress> {
     }
     let bar = indicatif::ProgressBar::new(lines as u64);
     bar.set_style(
-        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} lines, {elapsed} {msg}")
+        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} {elapsed} {msg}")
             .expect("a valid template"),
     );
     Some(Progress(bar))

@@ -103,8 +103,21 @@ pub enum CanClock {
     SyncLocked,
 }
 
+/// Where a run is, for a display.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CanProgress {
+    /// Set-points sent.
+    pub sent: usize,
+    /// Set-points of the program.
+    pub total: usize,
+    /// The machine time the set-points not yet sent will take.
+    pub left: Duration,
+}
+
+/// Called as a run goes: about once a second of machine time, and at its end.
+pub type CanProgressFn = Box<dyn FnMut(&CanProgress) + Send>;
+
 /// How [`stream_can`] runs.
-#[derive(Debug, Clone)]
 pub struct CanOptions {
     /// The master's settings: nodes, heartbeat, windows, timeouts.
     pub session: SessionConfig,
@@ -117,6 +130,8 @@ pub struct CanOptions {
     pub answer_timeout: Duration,
     /// What is run, for the log.
     pub program: String,
+    /// Progress as the run goes, for a display.
+    pub on_progress: Option<CanProgressFn>,
 }
 
 /// How a run ended.
@@ -469,7 +484,7 @@ impl Clock {
 pub async fn stream_can(
     link: &CanLink,
     program: &Program,
-    options: CanOptions,
+    mut options: CanOptions,
     log: &mut ExecLog,
 ) -> Result<CanOutcome, CanError> {
     if options.clock == CanClock::SyncLocked && !matches!(link, CanLink::Slcan { .. }) {
@@ -497,6 +512,17 @@ pub async fn stream_can(
             transport: link.transport().to_owned(),
         },
     )?;
+    let [x, z, c] = nodes;
+    log.write(
+        0.0,
+        exec_log::Event::Message {
+            text: format!(
+                "{name}: drives X, Z, C on nodes {x}, {z}, {c} in {}, a {period:?} cycle, \
+                 from X {:.4} Z {:.4} C {:.4}",
+                options.session.operation, start[0], start[1], start[2]
+            ),
+        },
+    )?;
     let mut run = Run {
         clock: Clock {
             kind: options.clock,
@@ -518,6 +544,12 @@ pub async fn stream_can(
         commands: 0,
         acks: 0,
         in_flight: VecDeque::new(),
+        progress: Progress {
+            report: options.on_progress.take(),
+            every: (Duration::from_secs(1).as_nanos() / period.as_nanos().max(1)).max(1) as usize,
+            last: 0,
+            period,
+        },
     };
     let result = run
         .drive(&mut port, &name, &mut session, period, &options, log)
@@ -528,6 +560,7 @@ pub async fn stream_can(
     };
     run.outcome.completed = result.is_ok() && session.phase() == Phase::Finished;
     run.outcome.sent = session.progress().0;
+    run.progress.tell(session.progress());
     run.outcome.session_time = run.clock.now();
     log.write(
         run.clock.started.elapsed().as_secs_f64(),
@@ -549,6 +582,37 @@ struct Run {
     /// With a SYNC-locked clock, for each cycle sent and not yet acknowledged: the
     /// commands sent up to its SYNC.
     in_flight: VecDeque<u64>,
+    progress: Progress,
+}
+
+/// The caller's progress display, told every `every` set-points.
+struct Progress {
+    report: Option<CanProgressFn>,
+    every: usize,
+    /// Set-points sent when it was last told.
+    last: usize,
+    period: Duration,
+}
+
+impl Progress {
+    /// Tells the display, (sent, total) as [`Session::progress`] gives them.
+    fn tell(&mut self, (sent, total): (usize, usize)) {
+        if let Some(report) = self.report.as_mut() {
+            self.last = sent;
+            report(&CanProgress {
+                sent,
+                total,
+                left: self.period * (total - sent) as u32,
+            });
+        }
+    }
+
+    /// Tells it if `every` set-points have gone since it was last told.
+    fn step(&mut self, progress: (usize, usize)) {
+        if progress.0 >= self.last + self.every {
+            self.tell(progress);
+        }
+    }
 }
 
 /// Cycles a SYNC-locked run may have in flight: sent, not yet acknowledged. The adapter and
@@ -583,6 +647,7 @@ impl Run {
             }
             let synced = frames.iter().any(is_sync);
             self.report(session, log)?;
+            self.progress.step(session.progress());
             if matches!(session.phase(), Phase::Finished | Phase::Stopped) {
                 return Ok(());
             }

@@ -24,7 +24,9 @@ use whirl::connection::{DriveMode, DriveSettings};
 use whirl::exec_log::{self, ExecLog};
 use whirl::gcode::program::{Axis, Block, Pose, Program};
 use whirl::machine::MachineProfile;
-use whirl::transport::can::{stream_can, CanClock, CanError, CanLink, CanOptions, CanOutcome};
+use whirl::transport::can::{
+    stream_can, CanClock, CanError, CanLink, CanOptions, CanOutcome, CanProgress,
+};
 use whirl_sim::canopen::serve::{serve_slcan, ServeOptions, SharedBus};
 use whirl_sim::canopen::{Bus, BusConfig, BusEvent, DriveEvent, PowerState};
 use whirl_sim::{ExecutedBlock, Position};
@@ -108,6 +110,7 @@ fn options(profile: &MachineProfile, drives: &DriveSettings) -> CanOptions {
         clock: CanClock::SyncLocked,
         answer_timeout: Duration::from_secs(5),
         program: "double-start (short)".to_owned(),
+        on_progress: None,
     }
 }
 
@@ -257,11 +260,17 @@ async fn every_set_point_executes_once(mode: DriveMode) {
     let (mut log, log_path) = log_in(&dir);
     let mut seen = Seen::default();
     let began = Instant::now();
-    let outcome = run_on_wire(&bus, &program, options(&profile, &drives), &mut log, |e| {
-        seen.record(e)
-    })
-    .await
-    .expect("the run is carried out");
+    let told = Arc::new(Mutex::new(Vec::new()));
+    let options = CanOptions {
+        on_progress: Some(Box::new({
+            let told = Arc::clone(&told);
+            move |p: &CanProgress| told.lock().unwrap().push(*p)
+        })),
+        ..options(&profile, &drives)
+    };
+    let outcome = run_on_wire(&bus, &program, options, &mut log, |e| seen.record(e))
+        .await
+        .expect("the run is carried out");
     eprintln!(
         "{} set-points over the wire in {:?}",
         outcome.setpoints,
@@ -270,6 +279,22 @@ async fn every_set_point_executes_once(mode: DriveMode) {
 
     assert!(outcome.completed, "{:?}", outcome.stop);
     assert_eq!(outcome.stop, None);
+    // Progress was told about once a second of machine time (250 cycles of 4 ms), in
+    // order, with the machine time the rest takes, and last at the end.
+    let told = told.lock().unwrap();
+    let period = drives.period();
+    assert!(told.len() >= outcome.setpoints / 250, "{}", told.len());
+    for pair in told.windows(2) {
+        assert!(pair[1].sent >= pair[0].sent + 250 || pair[1].sent == pair[1].total);
+    }
+    for p in told.iter() {
+        assert_eq!(p.total, outcome.setpoints);
+        assert_eq!(p.left, period * (p.total - p.sent) as u32);
+    }
+    assert_eq!(
+        told.last().map(|p| (p.sent, p.left)),
+        Some((outcome.setpoints, Duration::ZERO))
+    );
     assert!(outcome.unconfirmed.is_empty());
     assert_eq!(outcome.sent, outcome.setpoints);
     assert_eq!(outcome.setpoints, expected.points.len());
