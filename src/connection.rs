@@ -792,17 +792,7 @@ mod tests {
 
     /// The key and problem of a connection that parses but does not validate.
     fn refused(connection: &str) -> (String, String) {
-        match load(connection) {
-            Err(ProfileError::Invalid {
-                origin,
-                key,
-                problem,
-            }) => {
-                assert_eq!(origin, "test.toml");
-                (key, problem)
-            }
-            other => panic!("{connection}\n=> {other:?}"),
-        }
+        crate::machine::tests::invalid(&profile_text(connection))
     }
 
     /// The message of a connection that does not parse.

@@ -135,6 +135,13 @@ pub enum DryRunError {
     /// The executed-path log.
     #[error("executed-path log: {0}")]
     Log(#[from] LogError),
+    /// The program asks more of the machine than it has (checked before anything runs).
+    #[error("block {block} (block index) of the program: {source}", block = .source.block())]
+    Limits {
+        /// What it asks.
+        #[from]
+        source: crate::machine::LimitError,
+    },
     /// The program cannot go through the Modbus register map.
     #[error("Modbus: {0}")]
     Modbus(String),
@@ -237,13 +244,12 @@ impl SimSide {
     fn on_event(&mut self, event: &Event) {
         match event {
             Event::Line { time, .. } => self.last_answer = *time,
-            Event::Executed(block) => self.executed(exec_log::Event::Executed {
-                line: block.n.map(|n| n as usize),
-                times: [block.start_time, block.end_time],
-                from: block.from.to_array(),
-                to: block.to.to_array(),
-                rapid: block.kind == MoveKind::Rapid,
-            }),
+            Event::Executed(block) => self.executed(
+                block.n.map(|n| n as usize),
+                [block.start_time, block.end_time],
+                [block.from.to_array(), block.to.to_array()],
+                block.kind == MoveKind::Rapid,
+            ),
             Event::Alarm { alarm, breach, .. } => {
                 let code = u16::from(alarm.code());
                 self.alarms.push(AlarmReport {
@@ -264,13 +270,7 @@ impl SimSide {
 
     /// The simulated drives' cycles, merged into a move.
     fn stretch(&mut self, stretch: simulator::cycles::Stretch) {
-        self.executed(exec_log::Event::Executed {
-            line: None,
-            times: stretch.times,
-            from: stretch.from,
-            to: stretch.to,
-            rapid: false,
-        });
+        self.executed(None, stretch.times, [stretch.from, stretch.to], false);
     }
 
     /// The Δ guard stopped the simulated drives: reported as grbl's ALARM:64 is.
@@ -283,19 +283,27 @@ impl SimSide {
         self.message(format!("simulator: {}", breach.message));
     }
 
-    /// A move the simulator executed (`event` is [`exec_log::Event::Executed`]).
-    fn executed(&mut self, event: exec_log::Event) {
-        if let exec_log::Event::Executed {
-            times, from, to, ..
-        } = &event
-        {
-            // Machine time is motion's: from the first move that went somewhere.
-            if from != to || self.motion.is_some() {
-                let start = self.motion.map_or(times[0], |m| m.0);
-                self.motion = Some((start, times[1]));
-            }
+    /// A move the simulator executed: its file line, start and end time, start and end
+    /// position, and whether it was a rapid.
+    fn executed(
+        &mut self,
+        line: Option<usize>,
+        times: [f64; 2],
+        [from, to]: [[f64; 3]; 2],
+        rapid: bool,
+    ) {
+        // Machine time is motion's: from the first move that went somewhere.
+        if from != to || self.motion.is_some() {
+            let start = self.motion.map_or(times[0], |m| m.0);
+            self.motion = Some((start, times[1]));
         }
-        self.log(event);
+        self.log(exec_log::Event::Executed {
+            line,
+            times,
+            from,
+            to,
+            rapid,
+        });
     }
 
     fn message(&mut self, text: String) {
@@ -435,8 +443,7 @@ pub async fn dry_run_modbus(
     use whirl_sim::modbus::serve::{serve_rtu, serve_tcp, ClockOptions};
     use whirl_sim::modbus::{Bank, BankOptions};
 
-    crate::machine::check_limits(program, machine)
-        .map_err(|e| DryRunError::Modbus(format!("block {}: {e}", e.block())))?;
+    crate::machine::check_limits(program, machine)?;
     let segments =
         crate::modbus::map::segments(program).map_err(|e| DryRunError::Modbus(e.to_string()))?;
     let total = segments.len();
@@ -598,8 +605,7 @@ pub async fn dry_run_can(
     use whirl_sim::canopen::serve::{serve_slcan, ServeOptions};
     use whirl_sim::canopen::{Bus, BusConfig, BusEvent};
 
-    crate::machine::check_limits(program, machine)
-        .map_err(|e| DryRunError::Can(format!("block {}: {e}", e.block())))?;
+    crate::machine::check_limits(program, machine)?;
     let settings = |e: crate::connection::SettingError| DryRunError::Can(e.to_string());
     let mut session = drives.session_config().map_err(settings)?;
     // Until the first SYNC the master and the simulated drives both run on the wall clock

@@ -653,7 +653,7 @@ pub fn cycle_time_s(program: &Program, profile: &MachineProfile) -> f64 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     fn profile(dialect: Dialect) -> MachineProfile {
@@ -892,7 +892,8 @@ max_rate = 72000.0
 accel = 7200.0
 "#;
 
-    fn invalid(text: &str) -> (String, String) {
+    /// The key and problem of a profile `text` that parses but does not validate.
+    pub(crate) fn invalid(text: &str) -> (String, String) {
         match MachineProfile::from_toml(text, "test.toml") {
             Err(ProfileError::Invalid {
                 origin,

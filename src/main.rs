@@ -152,15 +152,13 @@ enum Transport {
 }
 
 impl Transport {
-    /// Its name on the command line and in a profile's `[connection]`.
-    fn name(self) -> &'static str {
-        match self {
-            Transport::Serial => "serial",
-            Transport::ModbusTcp => "modbus-tcp",
-            Transport::ModbusRtu => "modbus-rtu",
-            Transport::CanSlcan => "can-slcan",
-            Transport::Can => "can",
-        }
+    /// Its name on the command line, as a profile's `[connection]` names it too.
+    fn name(self) -> String {
+        use clap::ValueEnum;
+        let value = self
+            .to_possible_value()
+            .expect("every transport has a name");
+        value.get_name().to_owned()
     }
 }
 
@@ -339,7 +337,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     );
                 }
                 Transport::CanSlcan | Transport::Can => {
-                    return stream_can(&input, &text, &machine, &link, &log);
+                    return stream_can(&input, &text, &lines, &machine, &link, &log);
                 }
             }
             let mut exec_log = whirl::exec_log::ExecLog::append(&log)?;
@@ -668,14 +666,14 @@ impl Link {
 fn stream_can(
     input: &Path,
     text: &str,
+    lines: &[String],
     machine: &MachineProfile,
     link: &Link,
     log: &Path,
 ) -> Result<ExitCode> {
     use whirl::transport::can::{stream_can, CanClock, CanLink, CanOptions};
+    whirl::transport::check_program(lines, machine)?;
     let program = whirl::gcode::parse::read_program(text, machine.x_diameter())?;
-    whirl::machine::check_limits(&program, machine)
-        .map_err(|e| anyhow::anyhow!("block {}: {e}", e.block()))?;
     let drives = can_drives(machine)?;
     let can_link = match link.transport {
         Transport::Can => CanLink::SocketCan {
