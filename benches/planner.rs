@@ -15,7 +15,7 @@ fn main() {
     divan::main();
 }
 
-/// 1000 points of the reference groove ρ(φ) = 30 − 5·cos 3φ (shared/data/linkage-vectors.csv).
+/// 1000 points of the reference groove ρ(φ) = 30 − 5·cos 3φ (tests/data/linkage-vectors.csv).
 fn lobe_points() -> Vec<ProfilePoint> {
     (0..1000)
         .map(|k| {

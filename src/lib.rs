@@ -6,7 +6,7 @@
 //! groove and the tool, chooses as few segments as keep the profile error within the allowable
 //! error Δ, and writes the program for the machine's controller.
 //!
-//! The model, frames and sign conventions are those of `shared/design/kinematics.md`.
+//! The model, frames and sign conventions are those of `docs/kinematics.md`.
 //!
 //! # Data flow
 //!
@@ -147,7 +147,7 @@ pub(crate) mod testing {
     use crate::profile::Profile;
     use std::f64::consts::TAU;
 
-    /// The three-lobe groove ρ(φ) = 30 − 5·cos 3φ of shared/data/linkage-vectors.csv,
+    /// The three-lobe groove ρ(φ) = 30 − 5·cos 3φ of tests/data/linkage-vectors.csv,
     /// 24 points of one period, for lead `lead` (right hand).
     pub fn lobe(lead: f64) -> Profile {
         let rows: Vec<Row> = (0..24)

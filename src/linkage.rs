@@ -374,9 +374,9 @@ mod tests {
     fn reproduces_the_reference_linkage_vectors() {
         let csv = std::fs::read_to_string(concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/../shared/data/linkage-vectors.csv"
+            "/tests/data/linkage-vectors.csv"
         ))
-        .expect("shared/data/linkage-vectors.csv beside the repository");
+        .expect("tests/data/linkage-vectors.csv");
         let mut rows = 0;
         for line in csv.lines().skip(1) {
             let f: Vec<&str> = line.split(',').collect();

@@ -412,7 +412,10 @@ fn check_outliers(
 mod tests {
     use super::*;
 
-    const HAN_LIU: &str = include_str!("../../../shared/data/han-liu-table1.csv");
+    const HAN_LIU: &str = include_str!(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/han-liu-table1.csv"
+    ));
     const P_HAN_LIU: f64 = 88.0 / (2.0 * PI);
 
     fn rows(pts: &[(f64, f64)]) -> Vec<Row> {
@@ -461,7 +464,7 @@ mod tests {
         };
         // The file has a header, so Table 1's 8th point is on line 9.
         assert_eq!((row.line, row.a, row.b), (9, 25.8, 12.78));
-        // Its neighbours put it near x = 25.08 (shared/data/README.md).
+        // Its neighbours put it near x = 25.08 (tests/data/README.md).
         assert!((near_a - 25.08).abs() < 0.1, "{e}");
         let text = e.to_string();
         assert!(text.contains("line 9") && text.contains("25.8") && text.contains("12.78"));

@@ -4,7 +4,7 @@
 //! This module turns the defining dimensions of three standard families into the exact
 //! axial-section curve of one axial pitch of an **external** thread (a screw shaft), made of
 //! straight lines and circular arcs ([`AxialPiece`]). The planner feeds that curve to the
-//! groove model of `shared/design/kinematics.md` ("axial-section input": the point (ρ, z) of
+//! groove model of `docs/kinematics.md` ("axial-section input": the point (ρ, z) of
 //! the half-plane φ = 0 is the transverse point at radius ρ and polar angle φ = −z / p).
 //!
 //! # Families

@@ -117,29 +117,29 @@ impl Drop for Sim {
 }
 
 /// Whether `python3` can import `module` (the pip package `package`). CI installs the
-/// clients' packages (`.ci/run`); a machine without them says why a test did nothing
-/// rather than failing on a missing tool.
+/// clients' packages (`.ci/run`) and sets `CI`, and there a missing peer fails the test; a
+/// developer's machine without them says why a test did nothing instead.
 pub fn python_with(module: &str, package: &str) -> bool {
-    match std::process::Command::new("python3")
+    let missing = match std::process::Command::new("python3")
         .args(["-c", &format!("import {module}")])
         .output()
     {
-        Err(e) => {
-            eprintln!("skipped: python3 cannot be run ({e})");
-            false
-        }
-        Ok(o) if !o.status.success() => {
-            eprintln!(
-                "skipped: python3 cannot import {package} (python3 -m pip install {package}): {}",
-                String::from_utf8_lossy(&o.stderr)
-                    .lines()
-                    .last()
-                    .unwrap_or("")
-            );
-            false
-        }
-        Ok(_) => true,
-    }
+        Err(e) => format!("python3 cannot be run ({e})"),
+        Ok(o) if !o.status.success() => format!(
+            "python3 cannot import {package} (python3 -m pip install {package}): {}",
+            String::from_utf8_lossy(&o.stderr)
+                .lines()
+                .last()
+                .unwrap_or("")
+        ),
+        Ok(_) => return true,
+    };
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "on CI the peer must be there: {missing}"
+    );
+    eprintln!("skipped: {missing}");
+    false
 }
 
 /// The double-start example planned for `profile`, cut to its first 200 blocks (lead-in,
