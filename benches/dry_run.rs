@@ -7,10 +7,10 @@
 //! what was done.
 
 use std::path::Path;
-use whirl::dry_run::{dry_run, DryRunOptions};
-use whirl::exec_log::ExecLog;
-use whirl::job::Job;
-use whirl::machine::MachineProfile;
+use whirl::config::job::Job;
+use whirl::config::machine::MachineProfile;
+use whirl::judge::dry_run::{dry_run, DryRunOptions};
+use whirl::log::ExecLog;
 
 fn main() {
     divan::main();
@@ -80,14 +80,14 @@ fn can_slcan(name: &str) {
         .build()
         .expect("a runtime");
     let report = runtime
-        .block_on(whirl::dry_run::dry_run_can(
+        .block_on(whirl::judge::dry_run::dry_run_can(
             &job,
             &machine,
             name,
             &plan.program,
-            whirl::dry_run::CanDrives {
+            whirl::judge::dry_run::CanDrives {
                 drives,
-                bitrate: whirl::can::slcan::Bitrate::M1,
+                bitrate: whirl::protocol::canopen::slcan::Bitrate::M1,
                 on_progress: None,
             },
             &mut ExecLog::discard(),

@@ -6,10 +6,10 @@ use divan::{black_box, Bencher};
 use glam::DVec2;
 use std::f64::consts::{PI, TAU};
 use std::path::Path;
-use whirl::job::Job;
-use whirl::linkage::{Linkage, Ring, Whirling};
-use whirl::machine::MachineProfile;
-use whirl::profile::ProfilePoint;
+use whirl::config::job::Job;
+use whirl::config::machine::MachineProfile;
+use whirl::geometry::linkage::{Linkage, Ring, Whirling};
+use whirl::geometry::profile::ProfilePoint;
 
 fn main() {
     divan::main();

@@ -16,8 +16,8 @@ use std::time::Duration;
 use divan::Bencher;
 use tokio::sync::oneshot;
 use tokio_serial::{SerialPort, SerialPortBuilderExt};
-use whirl::exec_log::ExecLog;
-use whirl::machine::MachineProfile;
+use whirl::config::machine::MachineProfile;
+use whirl::log::ExecLog;
 use whirl::transport::{check_program, stream, StreamOptions, StreamOutcome};
 use whirl_sim::serve::{serve, ServeOptions};
 use whirl_sim::{Controller, ControllerOptions, Event};
@@ -111,8 +111,9 @@ impl Sim {
                     rx_buffer_size: rx,
                     ..ControllerOptions::default()
                 };
-                let mut controller = Controller::new(&whirl::simulator::machine(&profile), options)
-                    .expect("a controller");
+                let mut controller =
+                    Controller::new(&whirl::judge::simulator::machine(&profile), options)
+                        .expect("a controller");
                 // As whirl-sim does: the board booted before the host opened the port.
                 controller.take_output();
                 let serve_options = ServeOptions {

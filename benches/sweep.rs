@@ -4,10 +4,10 @@
 //! Run with `cargo bench --bench sweep`; the point counts are printed first.
 
 use divan::{black_box, Bencher};
-use whirl::sweep::grazing::{section_points, ParaboloidCap};
-use whirl::sweep::helix::Helix;
-use whirl::sweep::section::{run_paraboloid, top_at, upper_boundary};
-use whirl::sweep::tool::Paraboloid;
+use whirl::papers::grazing::{section_points, ParaboloidCap};
+use whirl::papers::helix::Helix;
+use whirl::papers::section::{run_paraboloid, top_at, upper_boundary};
+use whirl::papers::tool::Paraboloid;
 
 /// Table 1: R = 20 mm, a = −0.05 1/mm, b = 7.2 mm, p = 20 mm.
 const TOOL: Paraboloid = Paraboloid { a: -0.05, b: 7.2 };

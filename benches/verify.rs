@@ -3,8 +3,8 @@
 
 use divan::{black_box, Bencher};
 use std::path::Path;
-use whirl::job::Job;
-use whirl::machine::MachineProfile;
+use whirl::config::job::Job;
+use whirl::config::machine::MachineProfile;
 
 fn main() {
     divan::main();
@@ -18,7 +18,7 @@ fn verify_100mm_ball_screw(bencher: Bencher) {
     let machine = MachineProfile::builtin_sim().unwrap();
     let text = whirl::plan::plan(&job, &machine).unwrap().text;
     bencher.bench(|| {
-        let v = whirl::check::verify(&job, &machine, &text, false).unwrap();
+        let v = whirl::judge::verify::verify(&job, &machine, &text, false).unwrap();
         black_box(v.max_undercut_mm)
     });
 }

@@ -8,53 +8,47 @@
 //!
 //! The model, frames and sign conventions are those of `docs/kinematics.md`.
 //!
-//! # Data flow
+//! # Data flow, and where each stage lives
 //!
 //! ```text
-//! job.toml + machine profile
-//!   → profile        (points + periodic spline, or a standard's axial section; validated)
-//!   → table          (the linkage at every profile sample: X(ψ) over one period)
-//!   → interference   (no other part of the ring cuts the groove)
-//!   → budget         (Δ shared: scallop, cusp, blending, rounding, interpolation)
-//!   → segment        (nodes in ψ, each span within its interpolation share)
-//!   → path           (lead-in, linked revolutions with axial feed, C rebasing, lead-out)
-//!   → gcode          (post-processor for the controller's dialect)
+//! config      job.toml (+ profile points) and machine profile, read and checked
+//!   → plan    linkage table X(ψ) → interference → error budget → nodes → path
+//!   → program the neutral planned path: moves in one continuous frame
+//!   → post    G-code text | Modbus segments | CANopen set-points
+//!   → protocol  sans-I/O grbl streamer | Modbus ring writer | CANopen master
+//!   → transport async edges: serial, Modbus TCP/RTU, CAN (slcan, socketcan)
+//!   → log     the executed-path log
+//! judge       verify, the simulator's Δ guard, dry runs: measures what was cut
 //! ```
 //!
-//! Every arrow is a plain, synchronous function of values; [`plan::plan`] runs them in order
+//! Each stage is a folder named after it. Below them all, [`geometry`] holds the
+//! mathematics (profile curves, the linkage, numerics). Every stage but the transports
+//! is plain synchronous code of values; [`plan::plan`] runs the planner's steps in order
 //! and refuses, with the place and the cause, before anything is written.
 //!
-//! # Modules
+//! # Modules, in the order they may import each other
 //!
-//! - [`job`]: the job file (groove, tool, cut).
-//! - [`machine`]: machine profiles: dialect, number type, travel, rates.
-//! - [`connection`]: a profile's `[connection]`: how the bridge reaches the machine
-//!   (serial, Modbus TCP/RTU, CAN through slcan or SocketCAN, with the drives' settings).
-//! - [`profile`]: groove sections ([`profile::points`], [`profile::spline`],
-//!   [`profile::standard`]).
-//! - [`linkage`]: kinematics.md's node solver, one profile point → one pose; [`brent`] its
-//!   root finder, [`minimise`] the 1D minimiser the sweeps use.
-//! - [`table`], [`interference`], [`budget`], [`segment`], [`path`]: the planner's steps.
-//! - [`gcode`]: the program model, writers and parser.
-//! - [`plan`]: all of the above in order, with the report.
-//! - [`protocol`]: sans-I/O controller protocols: grbl/grblHAL streaming by character
-//!   counting, controller responses, resume preambles.
-//! - [`simulator`]: the simulated controller (`whirl-sim`) as whirl embeds it.
-//! - [`dry_run`]: a planned job streamed to the in-process simulator over a pseudo-terminal,
-//!   its profile error measured by the simulator's Δ guard.
-//! - [`exec_log`]: the executed-path log (JSON lines), its summary and plots.
-//! - [`can`]: sans-I/O CAN layers for CiA 402 drives: frames, slcan, CANopen, CiA 402.
-//! - [`modbus`]: the Modbus register map (`docs/modbus.md`), segments streamed through its ring.
-//! - [`transport`]: the async edges that move a protocol's bytes: a program streamed to a
-//!   controller over a serial line (tokio, tokio-serial), logged to the executed-path log.
+//! - [`geometry`]: profiles, the linkage of `docs/kinematics.md`, root finding, minimising.
+//! - [`config`]: the job, machine profiles and their `[connection]`.
+//! - [`program`]: the neutral planned path.
+//! - [`post`]: the program in a controller's form.
+//! - [`plan`]: job + machine → a checked program and its report.
+//! - [`protocol`]: sans-I/O controller protocols.
+//! - [`log`]: the executed-path log (JSON lines) and its summary.
+//! - [`transport`]: the async edges that move a protocol's bytes.
+//! - [`judge`]: the swept-volume measurement, the simulator and dry runs.
+//! - [`papers`]: the founding papers' geometry reproduced, outside the data flow: it checks
+//!   the measurement engine's methods and backs `whirl sweep`.
+//!
+//! `docs/architecture.md` draws the layers and says what each may import.
 //!
 //! # Example
 //!
 //! ```
 //! use std::f64::consts::{PI, TAU};
 //! use glam::DVec2;
-//! use whirl::linkage::{Linkage, Ring, Whirling};
-//! use whirl::profile::ProfilePoint;
+//! use whirl::geometry::linkage::{Linkage, Ring, Whirling};
+//! use whirl::geometry::profile::ProfilePoint;
 //!
 //! // A root point of a groove (normal radial): kinematics.md's check values say the ring
 //! // centre sits at X = R − (ρ + r) with C = π − φ, whatever the installation angle.
@@ -74,29 +68,15 @@
 //! assert!((contact.pose.c - PI).abs() < 1e-9);
 //! ```
 
-pub mod brent;
-pub mod budget;
-pub mod can;
-pub mod check;
-pub mod connection;
-pub mod dry_run;
-pub mod exec_log;
-pub mod gcode;
-pub mod interference;
-pub mod job;
-pub mod linkage;
-pub mod machine;
-pub mod minimise;
-pub mod modbus;
-pub mod path;
+pub mod config;
+pub mod geometry;
+pub mod judge;
+pub mod log;
+pub mod papers;
 pub mod plan;
-pub mod profile;
+pub mod post;
+pub mod program;
 pub mod protocol;
-pub mod segment;
-pub mod simulator;
-pub mod svg;
-pub mod sweep;
-pub mod table;
 pub mod transport;
 
 /// An error and its causes as one line, for the command lines. Errors here carry their
@@ -143,8 +123,8 @@ mod tests {
 /// Shapes shared by the unit tests.
 #[cfg(test)]
 pub(crate) mod testing {
-    use crate::profile::points::{profile, Row, Section};
-    use crate::profile::Profile;
+    use crate::geometry::profile::points::{profile, Row, Section};
+    use crate::geometry::profile::Profile;
     use std::f64::consts::TAU;
 
     /// The three-lobe groove ρ(φ) = 30 − 5·cos 3φ of tests/data/linkage-vectors.csv,

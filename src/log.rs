@@ -6,10 +6,10 @@
 //! reported, not fatal, when the log is read. Times are seconds since the run started. The
 //! format is the same for every transport.
 
-use crate::check::{self, CheckError};
-use crate::job::Job;
-use crate::svg::{Plot, Series};
-use crate::sweep::verify::{Motion, VerifyError};
+use crate::config::job::Job;
+use crate::judge::measure::{Motion, VerifyError};
+use crate::judge::svg::{Plot, Series};
+use crate::judge::verify::{self, CheckError};
 use serde::{Deserialize, Serialize};
 use std::fs::{File, OpenOptions};
 use std::io::Write;
@@ -306,7 +306,7 @@ impl Summary {
 /// Needs executed moves, which a simulated controller logs; rapids are positioning and are
 /// left out, as the simulator's Δ guard leaves them.
 pub fn section_plot(log: &Read, job: &Job) -> Result<Plot, CheckError> {
-    let target = check::target(job)?;
+    let target = verify::target(job)?;
     let mut motion = Motion::empty();
     for (i, r) in log.records.iter().enumerate() {
         if let Event::Executed {
@@ -324,7 +324,7 @@ pub fn section_plot(log: &Read, job: &Job) -> Result<Plot, CheckError> {
     }
     let pitch = job.groove.lead / f64::from(job.groove.starts);
     let middle = job.groove.z_start + job.groove.length / 2.0;
-    Ok(target.section_plot(&motion, middle, check::magnification(job.cut.delta, pitch)))
+    Ok(target.section_plot(&motion, middle, verify::magnification(job.cut.delta, pitch)))
 }
 
 /// X, Z and C over time, from the status reports: one plot per axis.

@@ -4,8 +4,8 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use whirl::job::Job;
-use whirl::machine::MachineProfile;
+use whirl::config::job::Job;
+use whirl::config::machine::MachineProfile;
 
 #[derive(Parser)]
 #[command(
@@ -244,7 +244,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             let mut plan = whirl::plan::plan(&job, &machine)
                 .with_context(|| format!("cannot plan {}", job_name(&job)))?;
             if verify {
-                let v = whirl::check::verify(&job, &machine, &plan.text, false)
+                let v = whirl::judge::verify::verify(&job, &machine, &plan.text, false)
                     .context("cannot verify the planned program")?;
                 if !v.within_delta {
                     anyhow::bail!(
@@ -290,7 +290,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     output,
                 },
         } => {
-            let csv = whirl::sweep::section::run_paraboloid(a, b, radius, pitch, accuracy)?;
+            let csv = whirl::papers::section::run_paraboloid(a, b, radius, pitch, accuracy)?;
             write_all(&[(Some(&output), &csv)])?;
             println!(
                 "{}: {} points within {accuracy} mm of the section",
@@ -340,7 +340,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     return stream_can(&input, &text, &lines, &machine, &link, &log);
                 }
             }
-            let mut exec_log = whirl::exec_log::ExecLog::append(&log)?;
+            let mut exec_log = whirl::log::ExecLog::append(&log)?;
             let bar = progress_bar(lines.len());
             let options = whirl::transport::StreamOptions {
                 program: input.display().to_string(),
@@ -431,12 +431,12 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 _ => None,
             };
             let mut exec_log = match &log {
-                Some(path) => whirl::exec_log::ExecLog::append(path)?,
-                None => whirl::exec_log::ExecLog::discard(),
+                Some(path) => whirl::log::ExecLog::append(path)?,
+                None => whirl::log::ExecLog::discard(),
             };
             let bar = progress_bar(lines.len());
             let on_can_progress = bar.as_ref().map(Progress::can_callback);
-            let options = whirl::dry_run::DryRunOptions {
+            let options = whirl::judge::dry_run::DryRunOptions {
                 time_scale: time_scale.filter(|s| *s > 0.0),
                 baud,
                 rx_size: rx,
@@ -449,7 +449,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             let r = runtime.block_on(async {
                 match transport {
                     Transport::Serial => {
-                        whirl::dry_run::dry_run(
+                        whirl::judge::dry_run::dry_run(
                             &job,
                             &machine,
                             &name,
@@ -461,14 +461,14 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     }
                     Transport::ModbusTcp | Transport::ModbusRtu => {
                         let program =
-                            whirl::gcode::parse::read_program(&text, machine.x_diameter())
+                            whirl::post::gcode::parse::read_program(&text, machine.x_diameter())
                                 .with_context(|| format!("cannot read {name}"))?;
                         let kind = if transport == Transport::ModbusTcp {
-                            whirl::dry_run::ModbusKind::Tcp
+                            whirl::judge::dry_run::ModbusKind::Tcp
                         } else {
-                            whirl::dry_run::ModbusKind::Rtu
+                            whirl::judge::dry_run::ModbusKind::Rtu
                         };
-                        whirl::dry_run::dry_run_modbus(
+                        whirl::judge::dry_run::dry_run_modbus(
                             &job,
                             &machine,
                             &name,
@@ -481,15 +481,15 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     }
                     Transport::CanSlcan | Transport::Can => {
                         let (drives, bitrate) = can.expect("settled above");
-                        let can = whirl::dry_run::CanDrives {
+                        let can = whirl::judge::dry_run::CanDrives {
                             drives,
                             bitrate,
                             on_progress: on_can_progress,
                         };
                         let program =
-                            whirl::gcode::parse::read_program(&text, machine.x_diameter())
+                            whirl::post::gcode::parse::read_program(&text, machine.x_diameter())
                                 .with_context(|| format!("cannot read {name}"))?;
-                        whirl::dry_run::dry_run_can(
+                        whirl::judge::dry_run::dry_run_can(
                             &job,
                             &machine,
                             &name,
@@ -552,21 +552,21 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Log { command } => {
             match command {
                 LogCommand::Summary { log } => {
-                    let read = whirl::exec_log::read(&log)?;
-                    let s = whirl::exec_log::Summary::of(&read);
+                    let read = whirl::log::read(&log)?;
+                    let s = whirl::log::Summary::of(&read);
                     println!("{}", serde_json::to_string_pretty(&s)?);
                 }
                 LogCommand::Plot { log, output, job } => {
-                    let read = whirl::exec_log::read(&log)?;
-                    let mut plots = whirl::exec_log::axis_plots(&read);
+                    let read = whirl::log::read(&log)?;
+                    let mut plots = whirl::log::axis_plots(&read);
                     if let Some(job) = job {
                         let job = Job::load(&job)?;
                         plots.push(
-                            whirl::exec_log::section_plot(&read, &job)
+                            whirl::log::section_plot(&read, &job)
                                 .with_context(|| format!("{}", log.display()))?,
                         );
                     }
-                    write_all(&[(Some(&output), &whirl::svg::stack(&plots))])?;
+                    write_all(&[(Some(&output), &whirl::judge::svg::stack(&plots))])?;
                 }
             }
             Ok(ExitCode::SUCCESS)
@@ -582,7 +582,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             let job = Job::load(&job)?;
             let text = std::fs::read_to_string(&program)
                 .with_context(|| format!("cannot read {}", program.display()))?;
-            let v = whirl::check::verify(&job, &machine, &text, svg.is_some())
+            let v = whirl::judge::verify::verify(&job, &machine, &text, svg.is_some())
                 .with_context(|| format!("cannot verify {}", program.display()))?;
             let json = serde_json::to_string_pretty(&v)?;
             write_all(&[
@@ -622,7 +622,7 @@ impl Link {
         port: Option<String>,
         baud: Option<u32>,
     ) -> Result<Link> {
-        use whirl::connection::Connection;
+        use whirl::config::connection::Connection;
         let profile = machine.connection.as_ref();
         let transport = transport
             .or_else(|| {
@@ -673,7 +673,7 @@ fn stream_can(
 ) -> Result<ExitCode> {
     use whirl::transport::can::{stream_can, CanClock, CanLink, CanOptions};
     whirl::transport::check_program(lines, machine)?;
-    let program = whirl::gcode::parse::read_program(text, machine.x_diameter())?;
+    let program = whirl::post::gcode::parse::read_program(text, machine.x_diameter())?;
     let drives = can_drives(machine)?;
     let can_link = match link.transport {
         Transport::Can => CanLink::SocketCan {
@@ -694,7 +694,7 @@ fn stream_can(
         program: input.display().to_string(),
         on_progress: bar.as_ref().map(Progress::can_callback),
     };
-    let mut exec_log = whirl::exec_log::ExecLog::append(log)?;
+    let mut exec_log = whirl::log::ExecLog::append(log)?;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()?;
@@ -722,15 +722,15 @@ fn stream_can(
 
 /// The CAN bus's bit rate: the profile's slcan adapter's, else 1 Mbit/s (a socketcan
 /// interface's is set by the system).
-fn can_bitrate(machine: &MachineProfile) -> Result<whirl::can::slcan::Bitrate> {
+fn can_bitrate(machine: &MachineProfile) -> Result<whirl::protocol::canopen::slcan::Bitrate> {
     Ok(match &machine.connection {
-        Some(whirl::connection::Connection::CanSlcan(s)) => s.slcan_bitrate()?,
-        _ => whirl::can::slcan::Bitrate::M1,
+        Some(whirl::config::connection::Connection::CanSlcan(s)) => s.slcan_bitrate()?,
+        _ => whirl::protocol::canopen::slcan::Bitrate::M1,
     })
 }
 
 /// The CAN drives' settings of `machine`'s `[connection]`.
-fn can_drives(machine: &MachineProfile) -> Result<&whirl::connection::DriveSettings> {
+fn can_drives(machine: &MachineProfile) -> Result<&whirl::config::connection::DriveSettings> {
     machine
         .connection
         .as_ref()
@@ -758,11 +758,11 @@ fn stream_modbus(
     baud: u32,
     log: &Path,
 ) -> Result<ExitCode> {
-    use whirl::connection::Connection;
+    use whirl::config::connection::Connection;
     use whirl::transport::modbus::{stream_modbus, ModbusLink, ModbusOptions};
     whirl::transport::check_program(lines, machine)?;
-    let program = whirl::gcode::parse::read_program(text, machine.x_diameter())?;
-    let segments = whirl::modbus::map::segments(&program)?;
+    let program = whirl::post::gcode::parse::read_program(text, machine.x_diameter())?;
+    let segments = whirl::protocol::modbus::map::segments(&program)?;
     let link = match transport {
         Transport::ModbusTcp => ModbusLink::Tcp(
             port.parse()
@@ -773,7 +773,7 @@ fn stream_modbus(
             baud,
         },
     };
-    let mut exec_log = whirl::exec_log::ExecLog::append(log)?;
+    let mut exec_log = whirl::log::ExecLog::append(log)?;
     // The profile's unit id and answer timeout, where its [connection] is this transport.
     let defaults = ModbusOptions::default();
     let (unit, timeout) = match (&machine.connection, transport) {

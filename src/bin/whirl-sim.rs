@@ -11,8 +11,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 use tokio_serial::SerialPort;
-use whirl::machine::MachineProfile;
-use whirl::simulator::guard::DeltaGuard;
+use whirl::config::machine::MachineProfile;
+use whirl::judge::guard::DeltaGuard;
 use whirl_sim::serve::{serve, ServeOptions};
 use whirl_sim::{Controller, ControllerOptions};
 
@@ -103,7 +103,7 @@ async fn run(cli: Cli) -> Result<()> {
         rx_buffer_size: cli.rx,
         ..ControllerOptions::default()
     };
-    let mut controller = Controller::new(&whirl::simulator::machine(&profile), options)?;
+    let mut controller = Controller::new(&whirl::judge::simulator::machine(&profile), options)?;
     if let Some(guard) = guard {
         controller.set_guard(Box::new(guard));
     }
@@ -160,7 +160,7 @@ async fn run(cli: Cli) -> Result<()> {
 
 /// The Δ guard of the job at `path`: the groove it measures the executed motion against.
 fn delta_guard(path: &Path, profile: &MachineProfile) -> Result<DeltaGuard> {
-    let job = whirl::job::Job::load(path)?;
+    let job = whirl::config::job::Job::load(path)?;
     DeltaGuard::new(&job, profile).with_context(|| format!("cannot measure {}", path.display()))
 }
 
@@ -192,12 +192,12 @@ async fn serve_can(
         .can_counts
         .or(drives.map(|d| d.counts_per_unit()))
         .unwrap_or([10_000.0; 3]);
-    let machine = whirl::simulator::machine(profile);
+    let machine = whirl::judge::simulator::machine(profile);
     let start = whirl_sim::Position::default();
     let config = BusConfig::for_machine(&machine, counts, period, start);
     let mut bus = Bus::new(config)?;
     if let Some(guard) = guard {
-        let merged = whirl::simulator::cycles::MergedGuard::new(guard, counts);
+        let merged = whirl::judge::cycles::MergedGuard::new(guard, counts);
         bus.set_guard(Box::new(merged));
     }
     let options = ServeOptions {

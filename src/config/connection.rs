@@ -1,6 +1,6 @@
 //! How the bridge reaches a machine: the `[connection]` table of a machine profile.
 //!
-//! A profile says what a machine can do ([`crate::machine`]); its optional `[connection]`
+//! A profile says what a machine can do ([`crate::config::machine`]); its optional `[connection]`
 //! says where the controller is and how to talk to it, so that a shop's profile carries
 //! "this lathe's PLC is at 192.168.0.10:502" or "these drives hang off a CANable on
 //! /dev/ttyACM0 at 1 Mbit/s, 4 ms cycle". A profile without it leaves the choice to the
@@ -20,11 +20,11 @@
 //! ([`DriveSettings`]). Every table denies unknown keys (a key of another transport
 //! included), most keys have defaults, and [`Connection::validate`] checks the values,
 //! naming the key and what it must be; a profile's loading runs it, so
-//! [`MachineProfile::load`](crate::machine::MachineProfile::load) refuses a bad
+//! [`MachineProfile::load`](crate::config::machine::MachineProfile::load) refuses a bad
 //! `[connection]` with the key (`connection.drives.cycle_us`).
 //!
 //! ```
-//! use whirl::connection::Connection;
+//! use whirl::config::connection::Connection;
 //!
 //! let connection: Connection = toml::from_str(
 //!     r#"
@@ -48,12 +48,12 @@ use std::time::Duration;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::can::canopen::NodeId;
-use crate::can::session::{Operation, SessionConfig};
-use crate::can::setpoints::SampleConfig;
-use crate::can::slcan::Bitrate;
-use crate::gcode::post::Dialect;
-use crate::machine::MachineProfile;
+use crate::config::machine::MachineProfile;
+use crate::post::gcode::writer::Dialect;
+use crate::post::setpoints::SampleConfig;
+use crate::protocol::canopen::cia301::NodeId;
+use crate::protocol::canopen::session::{Operation, SessionConfig};
+use crate::protocol::canopen::slcan::Bitrate;
 
 /// How the bridge reaches the machine, by transport.
 ///
@@ -591,7 +591,7 @@ impl DriveSettings {
         Duration::from_micros(u64::from(self.cycle_us))
     }
 
-    /// Drive counts per mm (X, Z) and per degree (C), in [`Axis::ALL`](crate::gcode::program::Axis::ALL)
+    /// Drive counts per mm (X, Z) and per degree (C), in [`Axis::ALL`](crate::program::Axis::ALL)
     /// order.
     pub fn counts_per_unit(&self) -> [f64; 3] {
         [
@@ -773,7 +773,7 @@ impl DriveSettings {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::machine::ProfileError;
+    use crate::config::machine::ProfileError;
 
     /// The built-in simulated machine (grblHAL, max_line_length 256, X −5…160, Z ±300)
     /// with `connection` as its `[connection]` table (its `[drives]` tables as
@@ -781,7 +781,7 @@ mod tests {
     fn profile_text(connection: &str) -> String {
         format!(
             "{}\n[connection]\n{}\n",
-            include_str!("../machine-profiles/sim.toml"),
+            include_str!("../../machine-profiles/sim.toml"),
             connection.replace("[drives", "[connection.drives")
         )
     }
@@ -792,7 +792,7 @@ mod tests {
 
     /// The key and problem of a connection that parses but does not validate.
     fn refused(connection: &str) -> (String, String) {
-        crate::machine::tests::invalid(&profile_text(connection))
+        crate::config::machine::tests::invalid(&profile_text(connection))
     }
 
     /// The message of a connection that does not parse.

@@ -4,12 +4,12 @@
 //! ignored on a machine). Lengths in mm, angles in degrees, speeds in rpm. See
 //! `examples/*/job.toml` for complete jobs.
 
-use crate::linkage::{Ring, Whirling};
-use crate::profile::points::{self, PointsError, Section};
-use crate::profile::standard::{
+use crate::geometry::linkage::{Ring, Whirling};
+use crate::geometry::profile::points::{self, PointsError, Section};
+use crate::geometry::profile::standard::{
     AcmeGeneralPurpose, BallArc, IsoTrapezoidal, StandardError, StandardProfile,
 };
-use crate::profile::Profile;
+use crate::geometry::profile::Profile;
 use serde::Deserialize;
 use std::f64::consts::TAU;
 use std::path::{Path, PathBuf};

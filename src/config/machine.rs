@@ -11,16 +11,16 @@
 //! C is the workpiece turn (degrees).
 //!
 //! An optional `[connection]` table says how the bridge reaches the machine (a serial
-//! port, a PLC's Modbus address, CAN drives and their scales); see [`crate::connection`].
+//! port, a PLC's Modbus address, CAN drives and their scales); see [`crate::config::connection`].
 
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::connection::Connection;
-use crate::gcode::post::{Dialect, PostSettings, MIN_LINE_LENGTH};
-use crate::gcode::program::{Axis, Block, Pose, Program};
+use crate::config::connection::Connection;
+use crate::post::gcode::writer::{Dialect, PostSettings, MIN_LINE_LENGTH};
+use crate::program::{Axis, Block, Pose, Program};
 
 /// How the controller holds coordinates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -150,7 +150,7 @@ pub struct MachineProfile {
     pub spindle: Option<Spindle>,
     /// Axis travel and dynamics.
     pub axes: Axes,
-    /// How the bridge reaches this machine (`[connection]`, see [`crate::connection`]);
+    /// How the bridge reaches this machine (`[connection]`, see [`crate::config::connection`]);
     /// absent: the caller says (the command line's flags).
     #[serde(default)]
     pub connection: Option<Connection>,
@@ -202,7 +202,7 @@ impl MachineProfile {
     /// simulator setup works without the profile files at hand.
     pub fn builtin_sim() -> Result<MachineProfile, ProfileError> {
         MachineProfile::from_toml(
-            include_str!("../machine-profiles/sim.toml"),
+            include_str!("../../machine-profiles/sim.toml"),
             "machine-profiles/sim.toml (built in)",
         )
     }
@@ -303,7 +303,7 @@ impl MachineProfile {
     }
 
     /// The post settings of this machine, with decimals the planner chose from its
-    /// error budget (see [`crate::gcode::format::decimals_for`]).
+    /// error budget (see [`crate::post::gcode::format::decimals_for`]).
     pub fn post_settings(&self, linear_decimals: u32, angular_decimals: u32) -> PostSettings {
         PostSettings {
             dialect: self.dialect,
@@ -761,7 +761,7 @@ pub(crate) mod tests {
             tcp.socket_addr(),
             Some(std::net::SocketAddr::from(([192, 168, 0, 10], 502)))
         );
-        assert_eq!(tcp.unit, crate::modbus::map::UNIT_ID);
+        assert_eq!(tcp.unit, crate::protocol::modbus::map::UNIT_ID);
         assert_eq!(tcp.timeout(), std::time::Duration::from_millis(500));
 
         // CiA 402 drives through a CANable: 4 ms, 0.1 µm on X and Z, 2^20 counts a turn of C.
@@ -773,7 +773,10 @@ pub(crate) mod tests {
             panic!("{:?}", drives_profile.connection);
         };
         assert_eq!(slcan.port, "/dev/ttyACM0");
-        assert_eq!(slcan.slcan_bitrate(), Ok(crate::can::slcan::Bitrate::M1));
+        assert_eq!(
+            slcan.slcan_bitrate(),
+            Ok(crate::protocol::canopen::slcan::Bitrate::M1)
+        );
         let drives = &slcan.drives;
         assert_eq!(drives.nodes, [1, 2, 3]);
         assert_eq!(drives.period(), std::time::Duration::from_millis(4));
@@ -783,7 +786,7 @@ pub(crate) mod tests {
         );
         assert_eq!(
             drives.session_config(),
-            Ok(crate::can::session::SessionConfig::default())
+            Ok(crate::protocol::canopen::session::SessionConfig::default())
         );
         assert_eq!(drives.spin_up(), std::time::Duration::from_secs(2));
     }
@@ -810,7 +813,7 @@ pub(crate) mod tests {
             .and_then(Connection::drives)
             .unwrap();
         for path in &jobs {
-            let job = crate::job::Job::load(path).unwrap();
+            let job = crate::config::job::Job::load(path).unwrap();
             for machine in [&plc, &can] {
                 let plan = crate::plan::plan(&job, machine)
                     .unwrap_or_else(|e| panic!("{} on {}: {e}", path.display(), machine.name));
@@ -819,9 +822,9 @@ pub(crate) mod tests {
                 check_limits(&plan.program, machine).unwrap();
                 // Modbus: every block fits a segment, and the shortest linked move is within
                 // a controller that takes 55 segments a second (the profile's comment).
-                let segments = crate::modbus::map::segments(&plan.program)
+                let segments = crate::protocol::modbus::map::segments(&plan.program)
                     .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-                crate::modbus::map::check_rate(&segments, 55)
+                crate::protocol::modbus::map::check_rate(&segments, 55)
                     .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
                 // CAN: X and Z stay in INTEGER32 counts, and every linked move spans at
                 // least four cycles.

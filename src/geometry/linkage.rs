@@ -6,8 +6,8 @@
 //! in closed form, and the meridian condition (3) is one equation g(C) = 0, bracketed near the
 //! cutting-side angle C₀ and solved with Brent's method.
 
-use crate::brent;
-use crate::profile::ProfilePoint;
+use crate::geometry::brent;
+use crate::geometry::profile::ProfilePoint;
 use glam::{DVec2, DVec3};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;

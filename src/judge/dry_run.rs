@@ -4,19 +4,21 @@
 //! The simulator runs in this process but behind a real pseudo-terminal, and the program
 //! goes through the same serial code a machine gets ([`transport::stream_port`]): the machine
 //! check before the first byte, character counting, status polling, the executed-path log.
-//! The simulator's Δ guard ([`simulator::guard`]) measures what it executes and raises
+//! The simulator's Δ guard ([`crate::judge::guard`]) measures what it executes and raises
 //! `ALARM:64` as soon as the profile error exceeds Δ; every move it executes is written to
 //! the same log as the streamer's events. Its clock runs as fast as the host allows unless
 //! a time scale is given, so a job of hours dry-runs in seconds; the link's byte rate is
 //! emulated in simulated time either way, so its utilisation is what the real link's would
 //! be.
 
-use crate::check::CheckError;
-use crate::exec_log::{self, ExecLog, LogError};
-use crate::job::Job;
-use crate::machine::MachineProfile;
-use crate::protocol::codes::alarm_message;
-use crate::simulator::{self, cycles::MergedGuard, guard::DeltaGuard};
+use crate::config::job::Job;
+use crate::config::machine::MachineProfile;
+use crate::judge::cycles::{self, MergedGuard};
+use crate::judge::guard::DeltaGuard;
+use crate::judge::simulator;
+use crate::judge::verify::CheckError;
+use crate::log::{self, ExecLog, LogError};
+use crate::protocol::grbl::codes::alarm_message;
 use crate::transport::{
     self, link_utilization, ProgressFn, StreamError, StreamOptions, StreamOutcome,
 };
@@ -140,7 +142,7 @@ pub enum DryRunError {
     Limits {
         /// What it asks.
         #[from]
-        source: crate::machine::LimitError,
+        source: crate::config::machine::LimitError,
     },
     /// The program cannot go through the Modbus register map.
     #[error("Modbus: {0}")]
@@ -269,7 +271,7 @@ impl SimSide {
     }
 
     /// The simulated drives' cycles, merged into a move.
-    fn stretch(&mut self, stretch: simulator::cycles::Stretch) {
+    fn stretch(&mut self, stretch: cycles::Stretch) {
         self.executed(None, stretch.times, [stretch.from, stretch.to], false);
     }
 
@@ -297,7 +299,7 @@ impl SimSide {
             let start = self.motion.map_or(times[0], |m| m.0);
             self.motion = Some((start, times[1]));
         }
-        self.log(exec_log::Event::Executed {
+        self.log(log::Event::Executed {
             line,
             times,
             from,
@@ -307,10 +309,10 @@ impl SimSide {
     }
 
     fn message(&mut self, text: String) {
-        self.log(exec_log::Event::Message { text });
+        self.log(log::Event::Message { text });
     }
 
-    fn log(&mut self, event: exec_log::Event) {
+    fn log(&mut self, event: log::Event) {
         let t = self.started.elapsed().as_secs_f64();
         if let Err(error) = self.log.write(t, event) {
             self.log_error.get_or_insert(error);
@@ -434,7 +436,7 @@ pub async fn dry_run_modbus(
     job: &Job,
     machine: &MachineProfile,
     name: &str,
-    program: &crate::gcode::program::Program,
+    program: &crate::program::Program,
     kind: ModbusKind,
     options: DryRunOptions,
     log: &mut ExecLog,
@@ -443,9 +445,9 @@ pub async fn dry_run_modbus(
     use whirl_sim::modbus::serve::{serve_rtu, serve_tcp, ClockOptions};
     use whirl_sim::modbus::{Bank, BankOptions};
 
-    crate::machine::check_limits(program, machine)?;
-    let segments =
-        crate::modbus::map::segments(program).map_err(|e| DryRunError::Modbus(e.to_string()))?;
+    crate::config::machine::check_limits(program, machine)?;
+    let segments = crate::protocol::modbus::map::segments(program)
+        .map_err(|e| DryRunError::Modbus(e.to_string()))?;
     let total = segments.len();
     let (controller, points) = guarded_controller(job, machine, ControllerOptions::default())?;
     let bank = Bank::new(
@@ -553,8 +555,8 @@ const CAN_SYNC_HOLD: Duration = Duration::from_secs(5);
 /// every cycle is judged (a CiA 402 drive knows no rapids), and a ring at X 0 is no place
 /// to start from: for external whirling it is concentric with the work, and the way out
 /// to the clear position would run its inserts through the blank.
-fn clear_start(program: &crate::gcode::program::Program) -> whirl_sim::Position {
-    use crate::gcode::program::{Axis, Pose};
+fn clear_start(program: &crate::program::Program) -> whirl_sim::Position {
+    use crate::program::{Axis, Pose};
     let x = program
         .steps(Pose::known(0.0, 0.0, 0.0))
         .find(|step| step.block.target().is_some())
@@ -572,9 +574,9 @@ const CAN_BOOT_TIME_SCALE: f64 = 1.0;
 /// The CAN drives of a dry run.
 pub struct CanDrives<'a> {
     /// Their settings (the machine profile's `[connection.drives]`).
-    pub drives: &'a crate::connection::DriveSettings,
+    pub drives: &'a crate::config::connection::DriveSettings,
     /// The bus's bit rate.
-    pub bitrate: crate::can::slcan::Bitrate,
+    pub bitrate: crate::protocol::canopen::slcan::Bitrate,
     /// Progress as the run goes, for a display.
     pub on_progress: Option<crate::transport::can::CanProgressFn>,
 }
@@ -584,7 +586,7 @@ pub struct CanDrives<'a> {
 /// master streams the set-points through the adapter in lockstep with the drives' SYNC
 /// clock ([`crate::transport::can::CanClock::SyncLocked`]), and the Δ guard judges the
 /// cycles the drives executed, merged into the straight stretches they make up
-/// ([`simulator::cycles`]). The log gets the master's events and the same stretches.
+/// ([`crate::judge::cycles`]). The log gets the master's events and the same stretches.
 ///
 /// The report counts set-points as its lines (`lines`, `lines_acked`: sent), and gives the
 /// CAN bus's load as `link_utilization`, at the adapter's bit rate, without stuff bits.
@@ -592,7 +594,7 @@ pub async fn dry_run_can(
     job: &Job,
     machine: &MachineProfile,
     name: &str,
-    program: &crate::gcode::program::Program,
+    program: &crate::program::Program,
     can: CanDrives<'_>,
     log: &mut ExecLog,
 ) -> Result<DryRunReport, DryRunError> {
@@ -605,8 +607,8 @@ pub async fn dry_run_can(
     use whirl_sim::canopen::serve::{serve_slcan, ServeOptions};
     use whirl_sim::canopen::{Bus, BusConfig, BusEvent};
 
-    crate::machine::check_limits(program, machine)?;
-    let settings = |e: crate::connection::SettingError| DryRunError::Can(e.to_string());
+    crate::config::machine::check_limits(program, machine)?;
+    let settings = |e: crate::config::connection::SettingError| DryRunError::Can(e.to_string());
     let mut session = drives.session_config().map_err(settings)?;
     // Until the first SYNC the master and the simulated drives both run on the wall clock
     // of one host, which may pause either for longer than a bus ever would: such a pause
@@ -650,7 +652,7 @@ pub async fn dry_run_can(
         ..ServeOptions::default()
     };
     let mut sim = SimSide::new(log);
-    let mut merger = simulator::cycles::Merger::new(counts_per_unit);
+    let mut merger = cycles::Merger::new(counts_per_unit);
     let outcome = until_streamed(
         serve_slcan(
             master,

@@ -1,7 +1,7 @@
 //! The simulator's Δ guard: the profile error of the motion the simulated controller
 //! actually executed, measured with the swept-volume engine while it executes.
 //!
-//! The target points are those `whirl verify` measures ([`crate::sweep::verify`]). A point's
+//! The target points are those `whirl verify` measures ([`crate::judge::measure`]). A point's
 //! error is final once the motion has gone past every pose that could still cut it: the
 //! search around a point reaches one workpiece revolution beyond the poses of the profile
 //! positions near it, so once the turning motion's Z is more than that (1.25 feeds, with the
@@ -15,10 +15,10 @@
 //! lead-in and lead-out), so the guard judges the feed moves. Any feed move that turns C the
 //! other way, or feeds Z back while C turns, cannot be measured and is itself a breach.
 
-use crate::check::{self, CheckError};
-use crate::job::Job;
-use crate::machine::MachineProfile;
-use crate::sweep::verify::{Grid, Motion, PointError, Sample, Target};
+use crate::config::job::Job;
+use crate::config::machine::MachineProfile;
+use crate::judge::measure::{Grid, Motion, PointError, Sample, Target};
+use crate::judge::verify::{self, CheckError};
 use std::collections::VecDeque;
 use whirl_sim::{Breach, ExecutedBlock, Guard, Measured, MoveKind};
 
@@ -50,7 +50,7 @@ pub struct DeltaGuard {
 impl DeltaGuard {
     /// A guard for `job`'s groove on `machine` (whose X mode says how to read X).
     pub fn new(job: &Job, machine: &MachineProfile) -> Result<DeltaGuard, CheckError> {
-        let target = check::target(job)?;
+        let target = verify::target(job)?;
         let grid = target.grid();
         let reach = grid
             .near
@@ -198,7 +198,7 @@ impl Guard for DeltaGuard {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::simulator::machine;
+    use crate::judge::simulator::machine;
     use whirl_sim::{Controller, ControllerOptions, MachineState};
 
     fn example(name: &str) -> Job {
@@ -248,13 +248,13 @@ mod tests {
         assert!(!out.contains("ALARM"), "{out}");
         assert!(out.contains("[MSG:Pgm End]"));
         let m = sim.guard().unwrap().measured();
-        let target = check::target(&job).unwrap();
+        let target = verify::target(&job).unwrap();
         assert_eq!(m.points, target.grid().samples.len());
         assert!(m.max_error_mm() <= job.cut.delta, "{m:?}");
         // What the guard measured on the executed motion is what `whirl verify` measures on
         // the program: the same engine, the motion differing by the controller's 32-bit
         // positions, which the planner's rounding share bounds.
-        let v = check::verify(&job, &profile, &plan.text, false).unwrap();
+        let v = verify::verify(&job, &profile, &plan.text, false).unwrap();
         let held = plan.report.rounding_mm;
         assert!(
             (m.max_overcut_mm - v.max_overcut_mm).abs() <= held,

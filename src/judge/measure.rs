@@ -19,12 +19,12 @@
 //! The target is sampled over every start and the whole formed length, at axial steps of
 //! 8/7 of the feed per revolution: the steps walk through every phase of the feed scallop.
 
-use crate::gcode::program::{Block, Pose as GPose, Program};
-use crate::linkage::{surface_normal, turn, Linkage, Torus};
-use crate::minimise::scan_then_golden;
-use crate::profile::Profile;
-use crate::svg::{Plot, Series};
-use crate::table::Table;
+use crate::geometry::linkage::{surface_normal, turn, Linkage, Torus};
+use crate::geometry::minimise::scan_then_golden;
+use crate::geometry::profile::Profile;
+use crate::judge::svg::{Plot, Series};
+use crate::plan::table::Table;
+use crate::program::{Block, Pose as GPose, Program};
 use glam::{DVec2, DVec3};
 use serde::Serialize;
 use std::f64::consts::TAU;
@@ -441,7 +441,7 @@ impl Target {
     }
 
     fn error_at(&self, probe: &Probe, seeds: &[Seed], motion: &Motion) -> f64 {
-        let mut torus = self.linkage.torus(&crate::linkage::Pose {
+        let mut torus = self.linkage.torus(&crate::geometry::linkage::Pose {
             x: 0.0,
             c: 0.0,
             z: 0.0,

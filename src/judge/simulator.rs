@@ -1,17 +1,14 @@
 //! The simulated controller (crate `whirl-sim`) as whirl embeds it: its machine description
-//! from a whirl machine profile, its Δ guard ([`guard`]) from a job, and the simulated
-//! drives' cycles merged into moves for the log ([`cycles`]).
+//! from a whirl machine profile, its Δ guard ([`super::guard`]) from a job, and the simulated
+//! drives' cycles merged into moves for the log ([`super::cycles`]).
 
-pub mod cycles;
-pub mod guard;
-
-use crate::machine::{MachineProfile, NumberType};
+use crate::config::machine::{MachineProfile, NumberType};
 use whirl_sim::machine::{Axis, Machine, Number};
 
 /// The simulator's view of a machine profile: travel, rates and accelerations per axis,
 /// the controller's number type, its line length and the ring spindle's range.
 pub fn machine(p: &MachineProfile) -> Machine {
-    let linear = |a: &crate::machine::LinearAxis| Axis {
+    let linear = |a: &crate::config::machine::LinearAxis| Axis {
         min: Some(a.min),
         max: Some(a.max),
         max_rate: a.max_rate,

@@ -1,11 +1,11 @@
 //! `whirl verify`: a program, as text, measured against its job's groove by the swept-volume
-//! engine ([`crate::sweep::verify`]), independently of how it was planned.
+//! engine ([`crate::judge::measure`]), independently of how it was planned.
 
-use crate::gcode::parse::{read_program, ParseError};
-use crate::job::{Job, JobError};
-use crate::linkage::Linkage;
-use crate::machine::MachineProfile;
-use crate::sweep::verify::{Measurement, Motion, PointError, Target, VerifyError};
+use crate::config::job::{Job, JobError};
+use crate::config::machine::MachineProfile;
+use crate::geometry::linkage::Linkage;
+use crate::judge::measure::{Measurement, Motion, PointError, Target, VerifyError};
+use crate::post::gcode::parse::{read_program, ParseError};
 use serde::Serialize;
 
 /// What `whirl verify --report` writes.

@@ -51,7 +51,7 @@
 //! upper half of the corner circle, a + √(a² − (x − a)²), where the material left lies under
 //! the lower half, a − √(a² − (x − a)²); Eqs. 22, 23 and 28 carry those errors forward.
 
-use crate::sweep::tool::{BallEnd, CornerRadius, Revolved};
+use crate::papers::tool::{BallEnd, CornerRadius, Revolved};
 use glam::DVec2;
 use serde::Serialize;
 
@@ -751,7 +751,7 @@ pub fn corner_radius_cusp(tool: &CornerRadius, stepover: f64) -> Result<Cusp, Cu
 /// image across the quarter circle's diagonal, equal to it only at a half-width of a/√2.
 pub mod paper {
     use super::{ball_cusp, non_negative, CuspError};
-    use crate::sweep::tool::{BallEnd, CornerRadius};
+    use crate::papers::tool::{BallEnd, CornerRadius};
 
     /// Eqs. 21–23's symbols for a corner-radius mill.
     #[derive(Debug, Clone, Copy, PartialEq)]
@@ -908,7 +908,7 @@ pub mod paper {
 mod tests {
     use super::paper::{BallSymbols, CornerSymbols};
     use super::*;
-    use crate::sweep::tool::{FlatEnd, Paraboloid, Torus};
+    use crate::papers::tool::{FlatEnd, Paraboloid, Torus};
     use proptest::prelude::*;
     use std::f64::consts::PI;
 

@@ -183,8 +183,8 @@ pub fn section_points(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sweep::section::seed000::{Case, TABLE_1};
-    use crate::sweep::section::{top_at, upper_boundary};
+    use crate::papers::section::seed000::{Case, TABLE_1};
+    use crate::papers::section::{top_at, upper_boundary};
 
     fn cap() -> ParaboloidCap {
         ParaboloidCap {
@@ -232,7 +232,7 @@ mod tests {
         let h = helix(&c);
         let pts = section_points(&cap(), &h, 2000);
         let (far, near) = c.switches();
-        let tool = crate::sweep::tool::Paraboloid { a: c.a, b: c.b };
+        let tool = crate::papers::tool::Paraboloid { a: c.a, b: c.b };
         let poly = upper_boundary(&tool, &h, (-32.0, -8.0), 1e-4).unwrap();
         let interpolate = |x: f64| {
             let i = poly.partition_point(|p| p.x <= x).clamp(1, poly.len() - 1);

@@ -7,15 +7,11 @@
 //! - [`grazing`]: the envelope by the grazing condition N · V = 0 (seeds 001, 004), an
 //!   independent check on [`section`].
 //! - [`helix`]: seed 000's helical motion (pure translation along a helix about y).
-//! - [`scallop`]: the whirling ring's feed scallop between neighbouring passes.
 //! - [`section`]: the machined section in a plane through the screw axis, seed 000's method.
 //! - [`tool`]: tools of revolution by their meridian region (torus, paraboloid, ball,
 //!   corner-radius, flat).
-//! - [`verify`]: the profile error of a program against its target groove.
 pub mod cusp;
 pub mod grazing;
 pub mod helix;
-pub mod scallop;
 pub mod section;
 pub mod tool;
-pub mod verify;

@@ -748,7 +748,7 @@ pub(crate) mod seed000 {
         pub fn switches(&self) -> (f64, f64) {
             let g = |x: f64| self.rho_star(x) - self.rim();
             let (far, near) = (-self.r - self.rim(), -self.r + self.rim());
-            let root = |a: f64, b: f64| crate::brent::root(g, a, b, 1e-14, 200).unwrap();
+            let root = |a: f64, b: f64| crate::geometry::brent::root(g, a, b, 1e-14, 200).unwrap();
             (root(far, -self.r), root(-self.r, near))
         }
     }
@@ -758,7 +758,7 @@ pub(crate) mod seed000 {
 mod tests {
     use super::seed000::{Case, TABLE_1};
     use super::*;
-    use crate::sweep::tool::{BallEnd, Torus};
+    use crate::papers::tool::{BallEnd, Torus};
     use proptest::prelude::*;
 
     fn table_1_tool() -> Paraboloid {

@@ -4,8 +4,8 @@
 //! The scallop and the cusp follow from the cut (feed, speeds) and the tool; blending and
 //! rounding from the machine; interpolation gets what is left, and node choice works to it.
 
-use crate::linkage::{Linkage, Whirling};
-use crate::table::Table;
+use crate::geometry::linkage::{Linkage, Whirling};
+use crate::plan::table::Table;
 use serde::Serialize;
 use std::f64::consts::TAU;
 

@@ -5,10 +5,10 @@
 //! the period this searches the whole groove surface within the ring's axial reach, every
 //! start included, for points inside the tool.
 
-use crate::linkage::{turn, Linkage};
-use crate::minimise::golden;
-use crate::profile::Profile;
-use crate::table::Table;
+use crate::geometry::linkage::{turn, Linkage};
+use crate::geometry::minimise::golden;
+use crate::geometry::profile::Profile;
+use crate::plan::table::Table;
 use glam::{DVec2, DVec3};
 
 /// A pose of the planned path that cuts the target surface elsewhere.
@@ -155,7 +155,7 @@ fn deepest(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::linkage::{Ring, Whirling};
+    use crate::geometry::linkage::{Ring, Whirling};
     use crate::testing::lobe;
     use std::f64::consts::{PI, TAU};
 

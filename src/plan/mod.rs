@@ -4,18 +4,24 @@
 //! interference check → error budget → nodes → path → limits. Every step that can refuse does
 //! so before anything is written.
 
-use crate::budget::{self, Budget, BudgetError};
-use crate::gcode::format::decimals_for;
-use crate::gcode::post::{self, PostSettings};
-use crate::gcode::program::Program;
-use crate::interference::{self, Interference};
-use crate::job::{Job, JobError};
-use crate::linkage::{Linkage, Ring, Whirling};
-use crate::machine::{self, MachineProfile};
-use crate::path::{self, PathSpec};
-use crate::profile::{ConcaveStretch, Profile};
-use crate::segment;
-use crate::table::{Table, TableError};
+pub mod budget;
+pub mod interference;
+pub mod path;
+pub mod scallop;
+pub mod segment;
+pub mod table;
+
+use crate::config::job::{Job, JobError};
+use crate::config::machine::{self, MachineProfile};
+use crate::geometry::linkage::{Linkage, Ring, Whirling};
+use crate::geometry::profile::{ConcaveStretch, Profile};
+use crate::plan::table::{Table, TableError};
+use crate::post::gcode::format::decimals_for;
+use crate::post::gcode::writer::{self, PostSettings};
+use crate::program::Program;
+use budget::{Budget, BudgetError};
+use interference::Interference;
+use path::PathSpec;
 use serde::Serialize;
 use std::fmt::Write as _;
 
@@ -72,7 +78,7 @@ pub struct Report {
     pub lines: usize,
     /// The swept-volume engine's measurement of the program (`whirl plan --verify`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub verify: Option<crate::check::Verification>,
+    pub verify: Option<crate::judge::verify::Verification>,
 }
 
 /// Why a job cannot be planned.
@@ -132,7 +138,7 @@ pub enum PlanError {
     Limits(String),
     /// The post-processor refused it.
     #[error(transparent)]
-    Post(#[from] post::PostError),
+    Post(#[from] writer::PostError),
 }
 
 fn concave_message(stretches: &[ConcaveStretch], nose: f64) -> String {
@@ -230,7 +236,7 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
     let blend = machine
         .blend_tolerance_mm
         .map_or(0.0, |b| b.min(delta / 5.0));
-    let scallop = crate::sweep::scallop::ring(&table, &linkage, feed);
+    let scallop = crate::plan::scallop::ring(&table, &linkage, feed);
     let cusp = budget::cusp(
         &table,
         &linkage,
@@ -256,8 +262,8 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         "whirl: {}-start {} hand groove, lead {} mm, {} whirling, R {} r {}, delta {} mm",
         job.groove.starts,
         match job.groove.hand {
-            crate::job::Hand::Right => "right",
-            crate::job::Hand::Left => "left",
+            crate::config::job::Hand::Right => "right",
+            crate::config::job::Hand::Left => "left",
         },
         job.groove.lead,
         match ring.whirling {
@@ -279,7 +285,7 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         blend_tolerance_mm: machine.blend_tolerance_mm.map(|_| blend),
         max_line_length: machine.max_line_length,
     };
-    let text = post::write(&path.program, &settings)?;
+    let text = writer::write(&path.program, &settings)?;
     let report = Report {
         segments: path.segments,
         nodes_per_period: nodes.per_period(),

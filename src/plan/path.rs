@@ -19,8 +19,8 @@
 //! precision back, and grbl stops all motion for every G92 (a dwell mark on the groove).
 //! The planner counts C's resolution at its largest value in the error budget instead.
 
-use crate::gcode::program::{Block, Program};
-use crate::segment::Nodes;
+use crate::plan::segment::Nodes;
+use crate::program::{Block, Program};
 use std::f64::consts::TAU;
 
 /// What the path needs besides the nodes.
@@ -139,9 +139,9 @@ pub fn build(nodes: &Nodes, spec: &PathSpec, title: &str) -> Path {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gcode::program::Pose;
-    use crate::linkage::{Contact, Pose as LinkagePose};
-    use crate::table::Sample;
+    use crate::geometry::linkage::{Contact, Pose as LinkagePose};
+    use crate::plan::table::Sample;
+    use crate::program::Pose;
     use glam::DVec2;
     use std::f64::consts::PI;
 

@@ -1,9 +1,9 @@
 //! The feed scallop of the whirling ring: what two neighbouring passes over the same groove
 //! leave between them, measured by sweeping the ring rather than estimated by a formula.
 
-use crate::linkage::{Linkage, Pose};
-use crate::minimise::{golden, scan_then_golden};
-use crate::table::Table;
+use crate::geometry::linkage::{Linkage, Pose};
+use crate::geometry::minimise::{golden, scan_then_golden};
+use crate::plan::table::Table;
 use glam::DVec3;
 use std::f64::consts::TAU;
 

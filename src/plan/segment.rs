@@ -6,7 +6,7 @@
 //! greedily, each span reaching as far along the table as its error allows: for errors that
 //! grow with a span's length this gives the fewest spans (the classic interval-cover argument).
 
-use crate::table::{Sample, Table};
+use crate::plan::table::{Sample, Table};
 
 /// The nodes of one period, ψ increasing; the last is the first shifted by one period.
 #[derive(Debug, Clone)]
@@ -69,7 +69,7 @@ pub fn choose(table: &Table, budget: f64) -> Nodes {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::linkage::{Contact, Pose};
+    use crate::geometry::linkage::{Contact, Pose};
     use glam::DVec2;
 
     /// A table whose X(ψ) is a parabola X = ψ², with |n·x̂| = 1.

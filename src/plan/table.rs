@@ -7,8 +7,8 @@
 //! on samples alone. Along the way it finds what makes a profile unwhirlable: a point with no
 //! pose, ψ turning back, or X jumping (the ring meeting the groove on another branch).
 
-use crate::linkage::{Contact, Linkage, LinkageError};
-use crate::profile::Profile;
+use crate::geometry::linkage::{Contact, Linkage, LinkageError};
+use crate::geometry::profile::Profile;
 use glam::DVec2;
 use std::f64::consts::TAU;
 
@@ -229,7 +229,7 @@ fn check_monotonic(samples: &[Sample], period: f64) -> Result<(), TableError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::linkage::{Ring, Whirling};
+    use crate::geometry::linkage::{Ring, Whirling};
     use crate::testing::lobe;
     use std::f64::consts::PI;
 

@@ -18,7 +18,7 @@
 //! - [`Block::Feed`]: its length over the feed, F along the X/Z path when X or Z moves,
 //!   in deg/min when C moves alone. A feed of C together with X or Z is refused: G-code
 //!   dialects share F between linear and rotary axes differently
-//!   ([`crate::machine::check_limits`]), and the planner never writes one.
+//!   ([`crate::config::machine::check_limits`]), and the planner never writes one.
 //! - [`Block::Rapid`]: as fast as the slowest axis allows, as a controller's rapid is.
 //!
 //! Any of them is lengthened, if need be, so that no axis exceeds its max rate (grbl's
@@ -69,8 +69,8 @@ use std::time::Duration;
 
 use thiserror::Error;
 
-use crate::gcode::program::{Axis, Block, Pose, Program};
-use crate::machine::MachineProfile;
+use crate::config::machine::MachineProfile;
+use crate::program::{Axis, Block, Pose, Program};
 
 /// The largest count magnitude computed exactly: 2⁵³, where f64 stops holding every
 /// integer.
@@ -477,7 +477,7 @@ fn counts(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gcode::program::Step;
+    use crate::program::Step;
 
     const MS: Duration = Duration::from_millis(1);
 

@@ -71,7 +71,7 @@ pub enum Block {
     /// G1 in units-per-minute mode (G94): plunge and retract moves; feed in mm/min.
     ///
     /// How the feed is shared between linear and rotary axes differs between controllers
-    /// (see [`crate::machine::check_limits`]); the planner keeps C out of these moves.
+    /// (see [`crate::config::machine::check_limits`]); the planner keeps C out of these moves.
     Feed {
         /// Target X, mm (radius).
         x: Option<f64>,

@@ -8,7 +8,7 @@
 //!    refuses a new bit rate), set the bit rate, open it; each command must be answered
 //!    with CR, not BEL.
 //! 2. Read each drive's position actual value (6064h) by expedited SDO. CSP set-points
-//!    begin where the drives stand ([`crate::can::setpoints`]), so the program is
+//!    begin where the drives stand ([`crate::post::setpoints`]), so the program is
 //!    sampled from there, with [`CanOptions::sample`]'s cycle, scales and rates.
 //! 3. Run the [`Session`]: its frames out, the bus's frames in, its events to the log,
 //!    until it has finished or stopped. Nothing else decides anything here.
@@ -32,14 +32,14 @@
 //! configuration, enable, spindle marks, emergencies, the stop and its reason), not the
 //! cycles, which the simulator's execution record logs as moves.
 
-use crate::can::canopen::{NodeId, SdoClient, SdoDone};
-use crate::can::cia402::object;
-use crate::can::session::{Event, Phase, Session, SessionConfig, StopReason};
-use crate::can::setpoints::{sample, SampleConfig, SampleError, SetPoints};
-use crate::can::slcan::{Bitrate, Command, Decoder, Received};
-use crate::can::{CanFrame, CanId};
-use crate::exec_log::{self, ExecLog, LogError};
-use crate::gcode::program::{Pose, Program};
+use crate::log::{self, ExecLog, LogError};
+use crate::post::setpoints::{sample, SampleConfig, SampleError, SetPoints};
+use crate::program::{Pose, Program};
+use crate::protocol::canopen::cia301::{NodeId, SdoClient, SdoDone};
+use crate::protocol::canopen::cia402::object;
+use crate::protocol::canopen::session::{Event, Phase, Session, SessionConfig, StopReason};
+use crate::protocol::canopen::slcan::{Bitrate, Command, Decoder, Received};
+use crate::protocol::canopen::{CanFrame, CanId};
 use std::collections::VecDeque;
 use std::time::Duration;
 use thiserror::Error;
@@ -220,7 +220,7 @@ pub enum CanError {
     Sample(#[from] SampleError),
     /// The session's configuration.
     #[error(transparent)]
-    Session(#[from] crate::can::session::SessionError),
+    Session(#[from] crate::protocol::canopen::session::SessionError),
     /// A SYNC-locked clock needs the adapter's acknowledgements.
     #[error("a SYNC-locked clock needs an slcan adapter's acknowledgements; {0} has none")]
     Lockstep(String),
@@ -506,7 +506,7 @@ pub async fn stream_can(
     let mut session = Session::new(options.session.clone(), setpoints)?;
     log.write(
         0.0,
-        exec_log::Event::Start {
+        log::Event::Start {
             program: options.program.clone(),
             lines: total,
             transport: link.transport().to_owned(),
@@ -515,7 +515,7 @@ pub async fn stream_can(
     let [x, z, c] = nodes;
     log.write(
         0.0,
-        exec_log::Event::Message {
+        log::Event::Message {
             text: format!(
                 "{name}: drives X, Z, C on nodes {x}, {z}, {c} in {}, a {period:?} cycle, \
                  from X {:.4} Z {:.4} C {:.4}",
@@ -564,7 +564,7 @@ pub async fn stream_can(
     run.outcome.session_time = run.clock.now();
     log.write(
         run.clock.started.elapsed().as_secs_f64(),
-        exec_log::Event::End {
+        log::Event::End {
             completed: run.outcome.completed,
             reason,
         },
@@ -741,7 +741,7 @@ impl Run {
                 _ => {}
             }
             let text = event.to_string();
-            log.write(t, exec_log::Event::Message { text })?;
+            log.write(t, log::Event::Message { text })?;
         }
         Ok(())
     }

@@ -12,9 +12,9 @@
 //! machine, the simulator's time scale in a dry run, so that status polls and watchdog
 //! writes keep their meaning in the controller's time.
 
-use crate::exec_log::{self, ExecLog, LogError};
-use crate::modbus::map::{Segment, UNIT_ID};
-use crate::modbus::{
+use crate::log::{self, ExecLog, LogError};
+use crate::protocol::modbus::map::{Segment, UNIT_ID};
+use crate::protocol::modbus::{
     Exception, Request, Response, RingWriter, WriterError, WriterEvent, WriterOptions,
 };
 use std::net::SocketAddr;
@@ -104,7 +104,7 @@ pub struct ModbusOutcome {
     /// Segments published to the ring.
     pub published: usize,
     /// The controller's alarm, if that ended the stream.
-    pub alarm: Option<crate::modbus::map::AlarmReport>,
+    pub alarm: Option<crate::protocol::modbus::map::AlarmReport>,
     /// Why the stream could not go on, if it could not.
     pub failure: Option<WriterError>,
     /// Calls that got no answer in time.
@@ -190,7 +190,7 @@ pub async fn stream_modbus(
     let t = |start: Instant| start.elapsed().as_secs_f64();
     log.write(
         0.0,
-        exec_log::Event::Start {
+        log::Event::Start {
             program: options.program.clone(),
             lines: total,
             transport: link.transport().to_owned(),
@@ -250,7 +250,7 @@ pub async fn stream_modbus(
                     outcome.timeouts += 1;
                     log.write(
                         t(start),
-                        exec_log::Event::Message {
+                        log::Event::Message {
                             text: format!("{request}: {why}; reconnecting"),
                         },
                     )?;
@@ -284,7 +284,7 @@ pub async fn stream_modbus(
                     outcome.published += 1;
                     log.write(
                         time,
-                        exec_log::Event::Sent {
+                        log::Event::Sent {
                             line: sequence as usize,
                             text: format!("segment {sequence} in slot {slot}"),
                         },
@@ -292,7 +292,7 @@ pub async fn stream_modbus(
                 }
                 WriterEvent::Status(s) => log.write(
                     time,
-                    exec_log::Event::Status {
+                    log::Event::Status {
                         state: format!("{:?}", s.state),
                         pos: s.position(),
                         blocks_free: None,
@@ -304,7 +304,7 @@ pub async fn stream_modbus(
                     outcome.alarm = Some(alarm);
                     log.write(
                         time,
-                        exec_log::Event::Alarm {
+                        log::Event::Alarm {
                             code: u32::from(alarm.code.code()),
                             message: alarm.to_string(),
                         },
@@ -333,7 +333,7 @@ pub async fn stream_modbus(
 
 /// The log's last event of a stream.
 fn end(log: &mut ExecLog, t: f64, completed: bool, reason: Option<String>) -> Result<(), LogError> {
-    log.write(t, exec_log::Event::End { completed, reason })
+    log.write(t, log::Event::End { completed, reason })
 }
 
 /// Why a call brought no answer the writer can take.

@@ -30,7 +30,7 @@
 //! - **Failed**: a read or write error, or the controller closing the stream, is a
 //!   [`StreamError`] naming the port: nothing is known about what ran after that.
 //!
-//! Every run is logged between [`exec_log::Event::Start`] and [`exec_log::Event::End`]
+//! Every run is logged between [`log::Event::Start`] and [`log::Event::End`]
 //! (also when it fails, as far as the log can still be written), with times in seconds
 //! since the start.
 
@@ -45,15 +45,15 @@ use tokio::time::{interval_at, sleep_until, Instant, Interval, MissedTickBehavio
 use tokio_serial::SerialPortBuilderExt;
 use tracing::Instrument;
 
-use crate::exec_log::{self, ExecLog, LogError};
-use crate::gcode::parse::{read_program_with_lines, ParseError};
-use crate::machine::{check_limits, LimitError, MachineProfile};
-use crate::protocol::{
+use crate::config::machine::{check_limits, LimitError, MachineProfile};
+use crate::log::{self, ExecLog, LogError};
+use crate::post::gcode::parse::{read_program_with_lines, ParseError};
+use crate::protocol::grbl::{
     self, Event, LineRef, MachineState, Progress, ResumePoint, Status, StopReason, Streamer,
     StreamerConfig,
 };
 
-/// The transport's name in [`exec_log::Event::Start`].
+/// The transport's name in [`log::Event::Start`].
 pub const TRANSPORT: &str = "serial";
 
 /// How long the last bytes of a run (a feed hold, a soft reset) may take to go out before
@@ -147,7 +147,7 @@ pub type ProgressFn = Box<dyn FnMut(&StreamProgress) + Send>;
 pub struct StreamOptions {
     /// The port's name, for errors and the log (the device path for [`stream_port`]).
     pub port_name: String,
-    /// What is streamed (the program file or job), for [`exec_log::Event::Start`].
+    /// What is streamed (the program file or job), for [`log::Event::Start`].
     pub program: String,
     /// The protocol's settings: receive buffer, `$I`, banner, poll interval, start line.
     pub streamer: StreamerConfig,
@@ -338,7 +338,7 @@ pub enum StreamError {
     },
     /// The program cannot be streamed as it is (a forbidden byte, a line too long).
     #[error("the program cannot be streamed: {0}")]
-    Program(#[from] protocol::StreamError),
+    Program(#[from] grbl::StreamError),
     /// The program failed the machine check; nothing was sent.
     #[error(transparent)]
     Preflight(#[from] PreflightError),
@@ -484,7 +484,7 @@ impl Run<'_> {
         self.start.elapsed().as_secs_f64()
     }
 
-    fn write_log(&mut self, event: exec_log::Event) -> Result<(), LogError> {
+    fn write_log(&mut self, event: log::Event) -> Result<(), LogError> {
         let t = self.now();
         self.log.write(t, event)
     }
@@ -503,7 +503,7 @@ impl Run<'_> {
         commands: Option<mpsc::Receiver<Command>>,
     ) -> Result<StreamOutcome, StreamError> {
         self.start = Instant::now();
-        self.write_log(exec_log::Event::Start {
+        self.write_log(log::Event::Start {
             program: self.program.clone(),
             lines: self.lines.len(),
             transport: TRANSPORT.to_owned(),
@@ -520,7 +520,7 @@ impl Run<'_> {
                     )),
                 };
                 tracing::debug!(?ending, "stream ended");
-                self.write_log(exec_log::Event::End {
+                self.write_log(log::Event::End {
                     completed: ending == Ending::Completed,
                     reason,
                 })?;
@@ -529,7 +529,7 @@ impl Run<'_> {
             Err(error) => {
                 tracing::warn!(%error, "stream failed");
                 // Best effort: the log may be what failed.
-                let _ = self.write_log(exec_log::Event::End {
+                let _ = self.write_log(log::Event::End {
                     completed: false,
                     reason: Some(error.to_string()),
                 });
@@ -649,7 +649,7 @@ impl Run<'_> {
                 "soft reset requested"
             }
         };
-        self.write_log(exec_log::Event::Message {
+        self.write_log(log::Event::Message {
             text: text.to_owned(),
         })?;
         Ok(())
@@ -685,7 +685,7 @@ impl Run<'_> {
                 self.sent += 1;
                 let text = self.lines.get(index).cloned().unwrap_or_default();
                 tracing::debug!(line = index + 1, ?line_no, %text, "sent");
-                self.write_log(exec_log::Event::Sent {
+                self.write_log(log::Event::Sent {
                     line: index + 1,
                     text,
                 })?;
@@ -698,7 +698,7 @@ impl Run<'_> {
             Event::Acked { index } => {
                 self.acked += 1;
                 tracing::debug!(line = index + 1, "ok");
-                exec_log::Event::Ack { line: index + 1 }
+                log::Event::Ack { line: index + 1 }
             }
             Event::Error {
                 index,
@@ -707,7 +707,7 @@ impl Run<'_> {
                 message,
             } => {
                 tracing::debug!(line = index + 1, %line, code, message, "error");
-                exec_log::Event::Error {
+                log::Event::Error {
                     line: index + 1,
                     code: u32::from(code),
                     message: message.to_owned(),
@@ -715,7 +715,7 @@ impl Run<'_> {
             }
             Event::Rejected { index, code } => {
                 tracing::debug!(line = index + 1, code, "rejected after the stop");
-                exec_log::Event::Message {
+                log::Event::Message {
                     text: format!(
                         "line {} not executed: refused with error:{code} after the stop",
                         index + 1
@@ -724,7 +724,7 @@ impl Run<'_> {
             }
             Event::Discarded { index } => {
                 tracing::debug!(line = index + 1, "discarded by the reset");
-                exec_log::Event::Message {
+                log::Event::Message {
                     text: format!(
                         "line {} not executed: discarded unanswered by the reset",
                         index + 1
@@ -735,11 +735,11 @@ impl Run<'_> {
                 tracing::debug!(?line, ?error, "answer to the streamer's own line");
                 match error {
                     None => return Ok(true),
-                    Some(code) => exec_log::Event::Message {
+                    Some(code) => log::Event::Message {
                         text: format!(
                             "{} was refused: error:{code} ({})",
                             LineRef::Aux(line),
-                            protocol::error_message(code)
+                            grbl::error_message(code)
                         ),
                     },
                 }
@@ -747,7 +747,7 @@ impl Run<'_> {
             Event::Alarm { code, message } => {
                 tracing::debug!(code, message, "alarm");
                 self.alarms.push(code);
-                exec_log::Event::Alarm {
+                log::Event::Alarm {
                     code: u32::from(code),
                     message: message.to_owned(),
                 }
@@ -755,7 +755,7 @@ impl Run<'_> {
             Event::Status(status) => return self.on_status(status),
             Event::Message(text) => {
                 tracing::debug!(%text, "controller message");
-                exec_log::Event::Message { text }
+                log::Event::Message { text }
             }
             Event::Feedback(text) => {
                 tracing::debug!(%text, "controller feedback");
@@ -767,19 +767,19 @@ impl Run<'_> {
             }
             Event::RxSize { bytes } => {
                 tracing::debug!(bytes, "receive buffer size");
-                exec_log::Event::Message {
+                log::Event::Message {
                     text: format!("controller receive buffer: {bytes} bytes"),
                 }
             }
             Event::Banner(text) => {
                 tracing::debug!(%text, "banner");
-                exec_log::Event::Message {
+                log::Event::Message {
                     text: format!("controller: {text}"),
                 }
             }
             Event::Reset => {
                 tracing::debug!("controller reset");
-                exec_log::Event::Message {
+                log::Event::Message {
                     text: "the controller reset".to_owned(),
                 }
             }
@@ -796,7 +796,7 @@ impl Run<'_> {
             }
             Event::Unrecognized(text) => {
                 tracing::debug!(%text, "unrecognised controller output");
-                exec_log::Event::Message {
+                log::Event::Message {
                     text: format!("unrecognised controller output: {text}"),
                 }
             }
@@ -839,14 +839,14 @@ impl Run<'_> {
         let state = state_name(&status);
         tracing::debug!(%state, ?position, line = ?status.line, "status");
         let event = match position {
-            Some(pos) => exec_log::Event::Status {
+            Some(pos) => log::Event::Status {
                 state,
                 pos,
                 blocks_free: status.buffer.map(|b| b.planner_blocks_free),
                 rx_free: status.buffer.map(|b| b.rx_bytes_free),
                 line: status.line.map(u64::from),
             },
-            None => exec_log::Event::Message {
+            None => log::Event::Message {
                 text: format!("status {state} without a machine position"),
             },
         };
@@ -983,10 +983,10 @@ async fn wait_until(deadline: Option<Instant>) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::exec_log::Record;
-    use crate::protocol::fake::Fake;
-    use crate::protocol::response::parse_status;
-    use crate::protocol::ResumeBasis;
+    use crate::log::Record;
+    use crate::protocol::grbl::fake::Fake;
+    use crate::protocol::grbl::response::parse_status;
+    use crate::protocol::grbl::ResumeBasis;
     use std::sync::{Arc, Mutex};
     use tokio::io::DuplexStream;
 
@@ -1116,7 +1116,7 @@ mod tests {
         let controller = tokio::spawn(controller(device, fake, script));
         let result = stream(host, lines, options, &mut log).await;
         let fake = controller.await.unwrap();
-        let read = exec_log::read(&path).unwrap();
+        let read = log::read(&path).unwrap();
         assert!(!read.torn_tail);
         Run {
             result,
@@ -1125,7 +1125,7 @@ mod tests {
         }
     }
 
-    fn events(records: &[Record]) -> Vec<&exec_log::Event> {
+    fn events(records: &[Record]) -> Vec<&log::Event> {
         records.iter().map(|r| &r.event).collect()
     }
 
@@ -1133,7 +1133,7 @@ mod tests {
         records
             .iter()
             .filter_map(|r| match &r.event {
-                exec_log::Event::Sent { line, .. } => Some(*line),
+                log::Event::Sent { line, .. } => Some(*line),
                 _ => None,
             })
             .collect()
@@ -1143,7 +1143,7 @@ mod tests {
         records
             .iter()
             .filter_map(|r| match &r.event {
-                exec_log::Event::Ack { line } => Some(*line),
+                log::Event::Ack { line } => Some(*line),
                 _ => None,
             })
             .collect()
@@ -1153,7 +1153,7 @@ mod tests {
         records
             .iter()
             .filter_map(|r| match &r.event {
-                exec_log::Event::Status { state, pos, .. } => Some((r.t, state.clone(), *pos)),
+                log::Event::Status { state, pos, .. } => Some((r.t, state.clone(), *pos)),
                 _ => None,
             })
             .collect()
@@ -1162,11 +1162,11 @@ mod tests {
     fn assert_start_and_end(records: &[Record], completed: bool) {
         let events = events(records);
         assert!(
-            matches!(events.first(), Some(exec_log::Event::Start { transport, .. }) if transport == TRANSPORT),
+            matches!(events.first(), Some(log::Event::Start { transport, .. }) if transport == TRANSPORT),
             "{events:?}"
         );
         assert!(
-            matches!(events.last(), Some(exec_log::Event::End { completed: c, .. }) if *c == completed),
+            matches!(events.last(), Some(log::Event::End { completed: c, .. }) if *c == completed),
             "{events:?}"
         );
         let times: Vec<f64> = records.iter().map(|r| r.t).collect();
@@ -1194,23 +1194,21 @@ mod tests {
         let events = events(&run.records);
         assert!(matches!(
             events.first(),
-            Some(exec_log::Event::Start { lines: 60, program, .. }) if program == "test.nc"
+            Some(log::Event::Start { lines: 60, program, .. }) if program == "test.nc"
         ));
         assert_eq!(sent_lines(&run.records), (1..=60).collect::<Vec<_>>());
         assert_eq!(acked_lines(&run.records), (1..=60).collect::<Vec<_>>());
         for (k, text) in lines.iter().enumerate() {
             let line = k + 1;
-            let sent = events.iter().position(|e| {
-                matches!(e, exec_log::Event::Sent { line: l, text: t } if *l == line && t == text)
-            });
+            let sent = events.iter().position(
+                |e| matches!(e, log::Event::Sent { line: l, text: t } if *l == line && t == text),
+            );
             let acked = events
                 .iter()
-                .position(|e| matches!(e, exec_log::Event::Ack { line: l } if *l == line));
+                .position(|e| matches!(e, log::Event::Ack { line: l } if *l == line));
             assert!(sent.unwrap() < acked.unwrap(), "line {line}");
         }
-        assert!(!events
-            .iter()
-            .any(|e| matches!(e, exec_log::Event::Error { .. })));
+        assert!(!events.iter().any(|e| matches!(e, log::Event::Error { .. })));
     }
 
     #[tokio::test(start_paused = true)]
@@ -1244,10 +1242,10 @@ mod tests {
         let events = events(&run.records);
         assert!(events.iter().any(|e| matches!(
             e,
-            exec_log::Event::Error { line: 8, code: 33, message } if !message.is_empty()
+            log::Event::Error { line: 8, code: 33, message } if !message.is_empty()
         )));
         assert!(acked_lines(&run.records).iter().all(|&l| l <= 7));
-        let Some(exec_log::Event::End {
+        let Some(log::Event::End {
             reason: Some(reason),
             ..
         }) = events.last()
@@ -1318,12 +1316,12 @@ mod tests {
         let events = events(&run.records);
         let last_ack = events
             .iter()
-            .rposition(|e| matches!(e, exec_log::Event::Ack { .. }))
+            .rposition(|e| matches!(e, log::Event::Ack { .. }))
             .unwrap();
         let after: Vec<&str> = events[last_ack..]
             .iter()
             .filter_map(|e| match e {
-                exec_log::Event::Status { state, .. } => Some(state.as_str()),
+                log::Event::Status { state, .. } => Some(state.as_str()),
                 _ => None,
             })
             .collect();
@@ -1352,7 +1350,7 @@ mod tests {
         assert_start_and_end(&run.records, false);
         assert!(matches!(
             run.records.last().map(|r| &r.event),
-            Some(exec_log::Event::End { reason: Some(reason), .. }) if reason.contains("/dev/ttyTEST")
+            Some(log::Event::End { reason: Some(reason), .. }) if reason.contains("/dev/ttyTEST")
         ));
     }
 
@@ -1382,7 +1380,7 @@ mod tests {
         assert_start_and_end(&run.records, false);
         assert!(matches!(
             run.records.last().map(|r| &r.event),
-            Some(exec_log::Event::End { reason: Some(reason), .. }) if reason.contains("no progress")
+            Some(log::Event::End { reason: Some(reason), .. }) if reason.contains("no progress")
         ));
     }
 
@@ -1425,9 +1423,7 @@ mod tests {
             .records
             .iter()
             .filter_map(|r| match &r.event {
-                exec_log::Event::Message { text } if text.ends_with("requested") => {
-                    Some(text.as_str())
-                }
+                log::Event::Message { text } if text.ends_with("requested") => Some(text.as_str()),
                 _ => None,
             })
             .collect();
@@ -1568,7 +1564,7 @@ mod tests {
         let fake = controller.await.unwrap();
         assert_eq!(fake.executed, lines);
         assert!(!fake.overflowed);
-        let records = exec_log::read(&path).unwrap().records;
+        let records = log::read(&path).unwrap().records;
         assert_eq!(acked_lines(&records), (1..=50).collect::<Vec<_>>());
         assert_start_and_end(&records, true);
     }

@@ -8,12 +8,12 @@
 use std::time::Duration;
 
 use crate::util;
-use whirl::can::session::{Event, Phase, Session, SessionConfig, StopReason};
-use whirl::can::setpoints::{sample, SampleConfig, SetPoints};
-use whirl::can::slcan::{Bitrate, Command, Decoder, Received};
-use whirl::gcode::program::{Axis, Block, Pose, Program};
-use whirl::machine::MachineProfile;
-use whirl::simulator::machine;
+use whirl::config::machine::MachineProfile;
+use whirl::judge::simulator::machine;
+use whirl::post::setpoints::{sample, SampleConfig, SetPoints};
+use whirl::program::{Axis, Block, Pose, Program};
+use whirl::protocol::canopen::session::{Event, Phase, Session, SessionConfig, StopReason};
+use whirl::protocol::canopen::slcan::{Bitrate, Command, Decoder, Received};
 use whirl_sim::canopen::{Bus, BusConfig, BusEvent, PowerState};
 use whirl_sim::{ExecutedBlock, Position};
 

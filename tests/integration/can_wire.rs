@@ -16,14 +16,14 @@ use std::time::{Duration, Instant};
 use crate::util;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio_serial::SerialPort;
-use whirl::can::canopen::NodeId;
-use whirl::can::session::{SessionConfig, StopReason};
-use whirl::can::setpoints::{sample, SetPoints};
-use whirl::can::slcan::Bitrate;
-use whirl::connection::{DriveMode, DriveSettings};
-use whirl::exec_log::{self, ExecLog};
-use whirl::gcode::program::{Axis, Block, Pose, Program};
-use whirl::machine::MachineProfile;
+use whirl::config::connection::{DriveMode, DriveSettings};
+use whirl::config::machine::MachineProfile;
+use whirl::log::{self, ExecLog};
+use whirl::post::setpoints::{sample, SetPoints};
+use whirl::program::{Axis, Block, Pose, Program};
+use whirl::protocol::canopen::cia301::NodeId;
+use whirl::protocol::canopen::session::{SessionConfig, StopReason};
+use whirl::protocol::canopen::slcan::Bitrate;
 use whirl::transport::can::{
     stream_can, CanClock, CanError, CanLink, CanOptions, CanOutcome, CanProgress,
 };
@@ -81,7 +81,7 @@ fn tiny_program() -> Program {
 /// The simulator's drives for `profile` at the origin, at the drives' cycle and scales.
 fn bus(profile: &MachineProfile, drives: &DriveSettings) -> SharedBus {
     let config = BusConfig::for_machine(
-        &whirl::simulator::machine(profile),
+        &whirl::judge::simulator::machine(profile),
         drives.counts_per_unit(),
         drives.period(),
         Position::default(),
@@ -199,11 +199,11 @@ impl Seen {
 
 /// The log's record of the session's Enabled event: SYNCs sent before the first
 /// set-point (set-point k, 0-based, goes with SYNC `syncs + k + 1`).
-fn enabled_syncs(log: &exec_log::Read) -> u64 {
+fn enabled_syncs(log: &log::Read) -> u64 {
     log.records
         .iter()
         .find_map(|r| match &r.event {
-            exec_log::Event::Message { text } => text
+            log::Event::Message { text } => text
                 .strip_prefix("every drive follows its target after ")?
                 .split(' ')
                 .next()?
@@ -305,7 +305,7 @@ async fn every_set_point_executes_once(mode: DriveMode) {
 
     // Every set-point executed once, in order, by the SYNC after it was sent (Event::Enabled):
     // the bus's cycle `first + k + 1` has set-point k's targets.
-    let read = exec_log::read(&log_path).unwrap();
+    let read = log::read(&log_path).unwrap();
     let first = enabled_syncs(&read);
     let scale = drives.counts_per_unit();
     let executed = &seen.executed;
@@ -356,7 +356,7 @@ async fn every_set_point_executes_once(mode: DriveMode) {
 struct Acted {
     outcome: CanOutcome,
     seen: Seen,
-    log: exec_log::Read,
+    log: log::Read,
     bus: SharedBus,
     /// SYNCs the bus had taken when the test acted: the server hands the bus a read's
     /// bytes whole, and a read may carry several cycles, so this may be a few past `at`.
@@ -400,7 +400,7 @@ async fn run_and_act_at(at: u64, act: impl FnOnce(&mut Bus)) -> Acted {
     Acted {
         outcome,
         seen,
-        log: exec_log::read(&log_path).unwrap(),
+        log: log::read(&log_path).unwrap(),
         bus,
         at_sync,
     }
@@ -512,7 +512,7 @@ async fn a_drive_fault_emcy_stops_the_job_and_says_why() {
         .records
         .iter()
         .filter_map(|r| match &r.event {
-            exec_log::Event::Message { text } => Some(text.as_str()),
+            log::Event::Message { text } => Some(text.as_str()),
             _ => None,
         })
         .collect();
@@ -524,7 +524,7 @@ async fn a_drive_fault_emcy_stops_the_job_and_says_why() {
     );
     assert!(log.records.iter().any(|r| matches!(
         &r.event,
-        exec_log::Event::End { completed: false, reason: Some(reason) }
+        log::Event::End { completed: false, reason: Some(reason) }
             if reason.contains("0x8611") && reason.contains("following error")
     )));
 

@@ -98,8 +98,7 @@ fn every_example_plans_within_delta_and_writes_program_and_report() {
 #[test]
 fn han_liu_points_are_refused_naming_the_outlier() {
     let dir = tempfile::tempdir().unwrap();
-    let csv =
-        std::fs::read_to_string(util::root().join("tests/data/han-liu-table1.csv")).unwrap();
+    let csv = std::fs::read_to_string(util::root().join("tests/data/han-liu-table1.csv")).unwrap();
     util::write(dir.path(), "han-liu.csv", &csv);
     let job = util::write(
         dir.path(),

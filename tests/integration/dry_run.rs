@@ -5,11 +5,11 @@ use crate::util;
 use serde_json::Value;
 use std::ffi::OsStr;
 use std::path::Path;
-use whirl::exec_log::{self, Event};
+use whirl::log::{self, Event};
 
 /// Runs `whirl dry-run JOB --report --log [extra…]`; returns the exit code, the report and
 /// the log as read back.
-fn dry_run(job: &Path, dir: &Path, extra: &[&OsStr]) -> (Option<i32>, Value, exec_log::Read) {
+fn dry_run(job: &Path, dir: &Path, extra: &[&OsStr]) -> (Option<i32>, Value, log::Read) {
     let (report, log) = (dir.join("report.json"), dir.join("exec.jsonl"));
     let mut args = vec![
         OsStr::new("dry-run"),
@@ -28,7 +28,7 @@ fn dry_run(job: &Path, dir: &Path, extra: &[&OsStr]) -> (Option<i32>, Value, exe
             String::from_utf8_lossy(&o.stderr)
         )
     });
-    let read = exec_log::read(&log).expect("the log reads back");
+    let read = log::read(&log).expect("the log reads back");
     (o.status.code(), serde_json::from_str(&text).unwrap(), read)
 }
 
@@ -41,7 +41,7 @@ struct Move {
 }
 
 /// The executed moves of a log.
-fn executed(log: &exec_log::Read) -> Vec<Move> {
+fn executed(log: &log::Read) -> Vec<Move> {
     log.records
         .iter()
         .filter_map(|r| match &r.event {
@@ -96,7 +96,7 @@ fn every_example_dry_runs_to_the_end_within_delta() {
             cutting >= linked,
             "{name}: {cutting} moves for {linked} lines"
         );
-        let summary = exec_log::Summary::of(&log);
+        let summary = log::Summary::of(&log);
         assert!(summary.executed_twice.is_empty(), "{name}");
         assert_eq!(summary.completed, Some(true), "{name}");
     }
@@ -218,7 +218,7 @@ fn every_example_dry_runs_within_delta_over_modbus_tcp_and_rtu() {
                     let u = r["link_utilization"].as_f64().unwrap();
                     assert!((0.0..=1.0).contains(&u), "{name}: {u}");
                     // The simulator's own record: every segment's move executed once.
-                    let summary = exec_log::Summary::of(&log);
+                    let summary = log::Summary::of(&log);
                     assert!(summary.executed_twice.is_empty(), "{name}");
                     assert_eq!(summary.sent as u64, r["lines"].as_u64().unwrap(), "{name}");
                     assert_eq!(summary.completed, Some(true), "{name}");
@@ -230,9 +230,9 @@ fn every_example_dry_runs_within_delta_over_modbus_tcp_and_rtu() {
 
 #[test]
 fn every_example_dry_runs_within_delta_on_can_drives_over_slcan() {
-    use whirl::gcode::program::{Axis, Pose};
+    use whirl::program::{Axis, Pose};
     let profile_path = util::root().join("machine-profiles/canopen-drives.toml");
-    let profile = whirl::machine::MachineProfile::load(&profile_path).unwrap();
+    let profile = whirl::config::machine::MachineProfile::load(&profile_path).unwrap();
     let drives = profile
         .connection
         .as_ref()
@@ -272,9 +272,10 @@ fn every_example_dry_runs_within_delta_on_can_drives_over_slcan() {
                     // The simulator's own record: the drives' path is one unbroken line
                     // of set-point cycles, as long as the set-points, ending where the
                     // program does.
-                    let planned = whirl::plan::plan(&whirl::job::Job::load(job).unwrap(), profile)
-                        .unwrap()
-                        .program;
+                    let planned =
+                        whirl::plan::plan(&whirl::config::job::Job::load(job).unwrap(), profile)
+                            .unwrap()
+                            .program;
                     let end = planned.steps(Pose::known(0.0, 0.0, 0.0)).last().unwrap().to;
                     let moves: Vec<([f64; 2], [f64; 3], [f64; 3])> = log
                         .records

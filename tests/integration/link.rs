@@ -17,9 +17,9 @@ use std::time::Duration;
 
 use tokio::sync::{mpsc, oneshot};
 use tokio_serial::{SerialPort, SerialPortBuilderExt};
-use whirl::exec_log::{self, ExecLog};
-use whirl::machine::MachineProfile;
-use whirl::protocol::{LineRef, ResumeBasis, StopReason, StreamerConfig};
+use whirl::config::machine::MachineProfile;
+use whirl::log::{self, ExecLog};
+use whirl::protocol::grbl::{LineRef, ResumeBasis, StopReason, StreamerConfig};
 use whirl::transport::{stream, Command, Ending, StreamOptions, StreamOutcome};
 use whirl_sim::serve::{serve, ServeOptions};
 use whirl_sim::{
@@ -119,7 +119,7 @@ impl Link {
                 path_tx
                     .send(slave.name().expect("the terminal's device"))
                     .expect("the test waits for the path");
-                let machine = whirl::simulator::machine(&profile());
+                let machine = whirl::judge::simulator::machine(&profile());
                 let mut sim = Controller::new(&machine, controller).expect("a controller");
                 // As whirl-sim does: the board booted before the host opened the port.
                 sim.take_output();
@@ -178,8 +178,8 @@ impl Link {
     }
 
     /// The streamer's executed-path log, every run so far.
-    fn streamer_log(&self) -> Vec<exec_log::Event> {
-        exec_log::read(&self.log_path())
+    fn streamer_log(&self) -> Vec<log::Event> {
+        log::read(&self.log_path())
             .expect("the executed-path log reads back")
             .records
             .into_iter()
@@ -483,7 +483,7 @@ fn an_error_mid_stream_stops_cleanly_and_resume_from_line_executes_every_line_on
     assert!(resume.executed_after_failure.is_empty(), "{resume:?}");
 
     // An error stop keeps the planner: the moves before the failed line finish. Once the
-    // machine is idle (the condition `whirl::protocol::resume` gives for resuming at the
+    // machine is idle (the condition `whirl::protocol::grbl::resume` gives for resuming at the
     // failed line) nothing at or after it has run.
     let failing_n = n_of(failing);
     link.log
@@ -514,7 +514,7 @@ fn an_error_mid_stream_stops_cleanly_and_resume_from_line_executes_every_line_on
         .streamer_log()
         .iter()
         .filter_map(|e| match e {
-            exec_log::Event::Error { line, .. } => Some(*line),
+            log::Event::Error { line, .. } => Some(*line),
             _ => None,
         })
         .collect();
@@ -594,7 +594,7 @@ fn grblhal_sticky_error_answers_later_lines_with_the_same_error_until_cleared() 
         .streamer_log()
         .iter()
         .filter_map(|e| match e {
-            exec_log::Event::Sent { line, .. } if *line > failing + 1 && *line <= lines.len() => {
+            log::Event::Sent { line, .. } if *line > failing + 1 && *line <= lines.len() => {
                 Some(Some(n_of(*line - 1)))
             }
             _ => None,
@@ -673,7 +673,7 @@ fn character_counting_never_overflows_at_128_and_1024_bytes() {
         assert!(
             link.streamer_log()
                 .iter()
-                .any(|e| matches!(e, exec_log::Event::Message { text } if *text == learned)),
+                .any(|e| matches!(e, log::Event::Message { text } if *text == learned)),
             "rx {rx}: the streamer did not learn the size from $I"
         );
 

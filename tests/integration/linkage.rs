@@ -4,8 +4,8 @@
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
 use std::f64::consts::{PI, TAU};
-use whirl::linkage::{surface_normal, turn, Linkage, Ring, Whirling};
-use whirl::profile::ProfilePoint;
+use whirl::geometry::linkage::{surface_normal, turn, Linkage, Ring, Whirling};
+use whirl::geometry::profile::ProfilePoint;
 
 /// The profile point at polar angle φ, its tangent running with φ (optionally mirrored y → −y,
 /// which reverses the direction of increasing polar angle).

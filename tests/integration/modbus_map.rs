@@ -1,4 +1,4 @@
-//! The two sides of `docs/modbus.md` meet: whirl's bridge (`whirl::modbus`, the ring
+//! The two sides of `docs/modbus.md` meet: whirl's bridge (`whirl::protocol::modbus`, the ring
 //! writer) streams a planned program into the simulator's register bank
 //! (`whirl_sim::modbus`), written apart from it, in front of the simulated controller.
 //! Only the Modbus requests and answers pass between them, translated field by field.
@@ -13,12 +13,14 @@
 use std::time::Duration;
 
 use crate::util;
-use whirl::gcode::program::{Pose, Program};
-use whirl::job::Job;
-use whirl::machine::MachineProfile;
-use whirl::modbus::map::{self, Segment, State};
-use whirl::modbus::{Exception, Request, Response, RingWriter, WriterEvent, WriterOptions};
-use whirl::simulator::machine;
+use whirl::config::job::Job;
+use whirl::config::machine::MachineProfile;
+use whirl::judge::simulator::machine;
+use whirl::program::{Pose, Program};
+use whirl::protocol::modbus::map::{self, Segment, State};
+use whirl::protocol::modbus::{
+    Exception, Request, Response, RingWriter, WriterEvent, WriterOptions,
+};
 use whirl_sim::modbus::{self as bank, Bank, BankOptions};
 use whirl_sim::{Controller, ControllerOptions, Event};
 
@@ -132,7 +134,7 @@ fn a_planned_program_streams_through_the_register_map_each_segment_once() {
     let start = ControllerOptions::default().start.to_array();
     let steps: Vec<_> = program
         .steps(Pose::known(start[0], start[1], start[2]))
-        .filter(|s| !matches!(s.block, whirl::gcode::program::Block::Comment(_)))
+        .filter(|s| !matches!(s.block, whirl::program::Block::Comment(_)))
         .collect();
     assert_eq!(steps.len() + 1, segments.len(), "M2 is added at the end");
     let moving: Vec<u32> = steps

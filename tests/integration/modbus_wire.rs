@@ -21,13 +21,13 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio_modbus::client::{tcp, Reader, Writer};
 use tokio_modbus::{ExceptionCode, Slave};
-use whirl::dry_run::MODBUS_TIME_SCALE;
-use whirl::exec_log::ExecLog;
-use whirl::gcode::program::{Block, Pose, Program};
-use whirl::job::Job;
-use whirl::machine::MachineProfile;
-use whirl::modbus::map::{self, AlarmCode, Segment, WordOrder};
-use whirl::modbus::{Exception, WriterError, WriterOptions};
+use whirl::config::job::Job;
+use whirl::config::machine::MachineProfile;
+use whirl::judge::dry_run::MODBUS_TIME_SCALE;
+use whirl::log::ExecLog;
+use whirl::program::{Block, Pose, Program};
+use whirl::protocol::modbus::map::{self, AlarmCode, Segment, WordOrder};
+use whirl::protocol::modbus::{Exception, WriterError, WriterOptions};
 use whirl::transport::modbus::{stream_modbus, ModbusLink, ModbusOptions, ModbusOutcome};
 use whirl_sim::modbus::serve::{serve_tcp, ClockOptions, SharedBank};
 use whirl_sim::modbus::{Bank, BankOptions};
@@ -238,7 +238,7 @@ fn bank(slots: u16) -> SharedBank {
     };
     let profile = MachineProfile::builtin_sim().unwrap();
     let controller = Controller::new(
-        &whirl::simulator::machine(&profile),
+        &whirl::judge::simulator::machine(&profile),
         ControllerOptions::default(),
     )
     .unwrap();

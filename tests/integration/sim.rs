@@ -3,10 +3,10 @@
 //! controller's own execution record ends where the program says.
 
 use crate::util;
-use whirl::gcode::program::Pose;
-use whirl::job::Job;
-use whirl::machine::MachineProfile;
-use whirl::simulator::machine;
+use whirl::config::job::Job;
+use whirl::config::machine::MachineProfile;
+use whirl::judge::simulator::machine;
+use whirl::program::Pose;
 use whirl_sim::{Controller, ControllerOptions, Event};
 
 #[test]
@@ -51,7 +51,7 @@ fn a_planned_program_runs_on_the_simulator_line_by_line_and_ends_where_it_says()
         answers.iter().find(|a| *a != "ok")
     );
     // Where the program says the machine ends, in its continuous frame.
-    let program = whirl::gcode::parse::read_program(&lines.join("\n"), false).unwrap();
+    let program = whirl::post::gcode::parse::read_program(&lines.join("\n"), false).unwrap();
     let end = program
         .steps(Pose::UNKNOWN)
         .filter_map(|s| s.block.target().map(|_| s.to))

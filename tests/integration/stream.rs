@@ -42,8 +42,8 @@ fn a_program_streams_to_the_simulator_with_every_line_acknowledged_and_logged() 
         log.as_os_str(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let read = whirl::exec_log::read(&log).unwrap();
-    let s = whirl::exec_log::Summary::of(&read);
+    let read = whirl::log::read(&log).unwrap();
+    let s = whirl::log::Summary::of(&read);
     assert_eq!(
         (s.sent, s.acked, s.errors, s.alarms),
         (lines.len(), lines.len(), 0, 0)
@@ -54,7 +54,7 @@ fn a_program_streams_to_the_simulator_with_every_line_acknowledged_and_logged() 
         .records
         .iter()
         .filter_map(|r| match &r.event {
-            whirl::exec_log::Event::Sent { line, .. } => Some(*line),
+            whirl::log::Event::Sent { line, .. } => Some(*line),
             _ => None,
         })
         .collect();

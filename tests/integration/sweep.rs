@@ -11,13 +11,13 @@
 use crate::util;
 use glam::{DVec2, DVec3};
 use std::f64::consts::TAU;
-use whirl::gcode::parse::read_program;
-use whirl::gcode::program::{Block, Pose as GPose, Program};
-use whirl::job::Job;
-use whirl::linkage::Whirling;
-use whirl::machine::MachineProfile;
-use whirl::profile::Profile;
-use whirl::sweep::verify::{Motion, Target};
+use whirl::config::job::Job;
+use whirl::config::machine::MachineProfile;
+use whirl::geometry::linkage::Whirling;
+use whirl::geometry::profile::Profile;
+use whirl::judge::measure::{Motion, Target};
+use whirl::post::gcode::parse::read_program;
+use whirl::program::{Block, Pose as GPose, Program};
 
 /// The ring at one executed pose, with the trigonometry of C done once.
 #[derive(Clone, Copy)]
@@ -218,7 +218,7 @@ fn assert_within_delta(name: &str) {
 
 /// `whirl verify`'s engine measures the same error at the same points as the brute force.
 fn engine_agrees(job: &Job, profile: &Profile, program: &Program, brute: &Measured) {
-    let linkage = whirl::linkage::Linkage {
+    let linkage = whirl::geometry::linkage::Linkage {
         p: job.p(),
         ring: job.ring(profile),
     };

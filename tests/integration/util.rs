@@ -146,10 +146,10 @@ pub fn python_with(module: &str, package: &str) -> bool {
 /// M3, plunge, linked moves) and its lead-out (the blocks after the last linked move:
 /// retract, M5): a stretch of real whirling path that runs in seconds.
 pub fn short_double_start(
-    profile: &whirl::machine::MachineProfile,
-) -> whirl::gcode::program::Program {
-    use whirl::gcode::program::{Block, Program};
-    let job = whirl::job::Job::load(&example("double-start")).unwrap();
+    profile: &whirl::config::machine::MachineProfile,
+) -> whirl::program::Program {
+    use whirl::program::{Block, Program};
+    let job = whirl::config::job::Job::load(&example("double-start")).unwrap();
     let blocks = whirl::plan::plan(&job, profile).unwrap().program.blocks;
     let last_linked = blocks
         .iter()

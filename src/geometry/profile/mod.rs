@@ -304,7 +304,7 @@ impl Profile {
     }
 
     fn normal3(&self, pos: DVec2, tangent: DVec2, p: f64) -> glam::DVec3 {
-        crate::linkage::surface_normal(pos, tangent, p)
+        crate::geometry::linkage::surface_normal(pos, tangent, p)
     }
 
     /// Normal curvature of the helical surface at `(u, θ = 0)` across the groove (positive where
@@ -313,7 +313,7 @@ impl Profile {
     fn cross_curvature(&self, u: f64, p: f64) -> (f64, f64) {
         use glam::DVec3;
         let (pos, d1, d2) = self.derivatives(u);
-        let n = crate::linkage::surface_normal(pos, d1, p);
+        let n = crate::geometry::linkage::surface_normal(pos, d1, p);
         let su = DVec3::new(d1.x, d1.y, 0.0);
         let st = DVec3::new(-pos.y, pos.x, p);
         let suu = DVec3::new(d2.x, d2.y, 0.0);

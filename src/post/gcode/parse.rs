@@ -28,7 +28,7 @@ use std::fmt;
 
 use thiserror::Error;
 
-use super::program::{Axis, Block, Program};
+use crate::program::{Axis, Block, Program};
 
 /// Millimetres per inch, for G20 programs.
 const MM_PER_INCH: f64 = 25.4;
@@ -1028,7 +1028,7 @@ G92.1 G0 C0
         assert_eq!(program.blocks, expected);
         // The continuous frame agrees: 10, then +5, then +5, then back to 0.
         let continuous: Vec<Option<f64>> = program
-            .steps(crate::gcode::program::Pose::UNKNOWN)
+            .steps(crate::program::Pose::UNKNOWN)
             .map(|s| s.to.c)
             .collect();
         assert_eq!(

@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use super::format::{format_number, format_number_down, format_significant_down, MAX_DECIMALS};
-use super::program::{Axis, Block, Pose, Program};
+use crate::program::{Axis, Block, Pose, Program};
 
 /// The controller language a program is written in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -68,7 +68,7 @@ const RPM_DECIMALS: u32 = 1;
 /// comment (`(MSG,…)`, `(DEBUG,…)`, `(PY,…)`, …).
 const DISARM_PREFIX: &str = "note: ";
 
-/// How a program is written for one controller; [`crate::machine::MachineProfile`]
+/// How a program is written for one controller; [`crate::config::machine::MachineProfile`]
 /// gives the machine's part of it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PostSettings {
@@ -484,7 +484,7 @@ fn invalid(block: usize, problem: String) -> PostError {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gcode::parse::{parse, read_program, GCode, WordKind};
+    use crate::post::gcode::parse::{parse, read_program, GCode, WordKind};
     use proptest::prelude::*;
 
     fn grbl() -> PostSettings {

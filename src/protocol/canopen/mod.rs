@@ -11,11 +11,9 @@
 //! - [`frame`]: a CAN 2.0 frame, 11- or 29-bit identifier, 0–8 bytes or a remote request.
 //! - [`slcan`]: the Lawicel ASCII protocol, host side: commands out, adapter replies and
 //!   received frames in.
-//! - [`canopen`]: COB-IDs, NMT, heartbeat, EMCY, the expedited SDO client, PDO mapping.
+//! - [`cia301`]: COB-IDs, NMT, heartbeat, EMCY, the expedited SDO client, PDO mapping.
 //! - [`cia402`]: statusword states, controlword commands, the walk to Operation enabled,
 //!   modes of operation, object indices.
-//! - [`setpoints`]: the planned path sampled at the cycle period into per-cycle (X, Z, C)
-//!   targets in drive counts.
 //! - [`session`]: the master: boot-up, configuration by SDO, NMT start, the walk to
 //!   Operation enabled, the cyclic set-points, heartbeat and emergency supervision, the
 //!   stop.
@@ -29,9 +27,9 @@
 //!
 //! ```
 //! use std::time::Duration;
-//! use whirl::can::canopen::{NodeId, SdoClient, SdoDone};
-//! use whirl::can::cia402::{object, PowerState};
-//! use whirl::can::slcan::{Command, Decoder, Received};
+//! use whirl::protocol::canopen::cia301::{NodeId, SdoClient, SdoDone};
+//! use whirl::protocol::canopen::cia402::{object, PowerState};
+//! use whirl::protocol::canopen::slcan::{Command, Decoder, Received};
 //!
 //! let mut sdo = SdoClient::new(NodeId::new(1).unwrap(), Duration::from_millis(100));
 //! sdo.upload(object::STATUSWORD, 0, Duration::ZERO).unwrap();
@@ -51,11 +49,10 @@
 //! }
 //! ```
 
-pub mod canopen;
+pub mod cia301;
 pub mod cia402;
 pub mod frame;
 pub mod session;
-pub mod setpoints;
 pub mod slcan;
 
 pub use frame::{CanFrame, CanId, FrameError};

@@ -18,7 +18,7 @@
 //!    the mode's set-point (target position 607Ah, or in interpolated position mode the
 //!    interpolation data record's first entry, 60C1h sub-index 1) and TPDO1 = statusword
 //!    6041h + position actual 6064h, both every SYNC, by CiA 301's mapping procedure
-//!    ([`canopen::pdo_mapping`]). Heartbeat supervision of a node starts when its 1017h
+//!    ([`cia301::pdo_mapping`]). Heartbeat supervision of a node starts when its 1017h
 //!    write is confirmed.
 //! 3. **Start and enable.** NMT start to each node, and the cycle starts: every period,
 //!    each drive's RPDO1 and then one SYNC. The first SYNC only asks for the TPDOs; from
@@ -34,7 +34,7 @@
 //!    mode active"), each cycle carries the next set-point's three targets, then the SYNC
 //!    that makes the drives take them together. In interpolated position mode a drive
 //!    whose bit 12 drops while it runs stops the job ([`StopReason::IpModeInactive`]): it
-//!    no longer takes its set-points. Spindle [`Mark`](super::setpoints::Mark)s are
+//!    no longer takes its set-points. Spindle [`Mark`](crate::post::setpoints::Mark)s are
 //!    reported as [`Event::Spindle`] when due.
 //! 5. **Settle and disable.** After the last set-point the final targets are held until
 //!    every actual position is within [`SessionConfig::settle_window`], then the drives
@@ -55,7 +55,7 @@
 //!
 //! # The cycle
 //!
-//! Set-points are computed before the first SYNC ([`super::setpoints`]), so a cycle only
+//! Set-points are computed before the first SYNC ([`crate::post::setpoints`]), so a cycle only
 //! reads the next one and the cycle never waits for the planner. `poll` sends exactly one
 //! SYNC when the cycle's time has come, however often it is called. A poll later than
 //! a whole period still sends one cycle (never a burst to catch up, which would hand the
@@ -67,7 +67,7 @@ use std::time::Duration;
 
 use thiserror::Error;
 
-use super::canopen::{
+use super::cia301::{
     self, cob, decode_emcy, decode_heartbeat, Cob, Emergency, MapEntry, NmtCommand, NmtState,
     NodeId, PdoConfig, PdoDirection, PdoNumber, SdoClient, SdoDone, SdoError, SdoWrite, EVERY_SYNC,
 };
@@ -76,8 +76,8 @@ use super::cia402::{
     Target, ENABLE_IP_MODE,
 };
 use super::frame::{CanFrame, CanId};
-use super::setpoints::{to_wire, unwrap_near, SetPoints};
-use crate::gcode::program::Axis;
+use crate::post::setpoints::{to_wire, unwrap_near, SetPoints};
+use crate::program::Axis;
 
 /// How the session runs the bus.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -1094,7 +1094,7 @@ impl Session {
             let pdo = PdoNumber::new(1).expect("PDO 1");
             out.push(frame(cob::rpdo(pdo, self.config.nodes[k]), &data));
         }
-        out.push(canopen::sync_frame());
+        out.push(cia301::sync_frame());
         self.syncs += 1;
     }
 
@@ -1352,7 +1352,7 @@ fn configuration(node: NodeId, config: &SessionConfig, cycle: (u8, i8)) -> VecDe
         },
     ];
     for mapping in &mappings {
-        let writes = canopen::pdo_mapping(node, mapping).expect("48 bits, valid entries");
+        let writes = cia301::pdo_mapping(node, mapping).expect("48 bits, valid entries");
         ops.extend(writes.into_iter().map(Op::Write));
     }
     ops
@@ -1361,8 +1361,8 @@ fn configuration(node: NodeId, config: &SessionConfig, cycle: (u8, i8)) -> VecDe
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::can::setpoints::{sample, SampleConfig};
-    use crate::gcode::program::{Block, Pose, Program};
+    use crate::post::setpoints::{sample, SampleConfig};
+    use crate::program::{Block, Pose, Program};
     use whirl_sim::canopen::{
         Drive as SimDrive, DriveConfig, DriveEvent as SimEvent, Frame, PowerState as SimPower,
     };

@@ -6,7 +6,7 @@
 //! model controller) drive it. So every rule of a protocol can be tested byte for byte,
 //! and the same code runs against a real machine and the simulator.
 //!
-//! - [`grbl`]: streaming a G-code program to a grbl/grblHAL controller over a serial line
+//! - [`streamer`]: streaming a G-code program to a grbl/grblHAL controller over a serial line
 //!   by character counting ([`Streamer`]), with status polling, feed hold, soft reset,
 //!   error and alarm handling, and the bookkeeping that says where to resume.
 //! - [`response`]: the controller's output, line by line: `ok`, `error:N`, `ALARM:N`,
@@ -20,7 +20,7 @@
 //! A two-line program streamed to a controller that answers `ok` to each line:
 //!
 //! ```
-//! use whirl::protocol::{Event, Streamer, StreamerConfig};
+//! use whirl::protocol::grbl::{Event, Streamer, StreamerConfig};
 //!
 //! let lines = vec!["G21 G90 G94".to_string(), "G1 X1 F100".to_string()];
 //! let config = StreamerConfig { query_build_info: false, ..StreamerConfig::default() };
@@ -36,17 +36,17 @@
 //! ```
 
 pub mod codes;
-pub mod grbl;
 pub mod response;
 pub mod resume;
+pub mod streamer;
 
 #[cfg(test)]
 pub(crate) mod fake;
 
 pub use codes::{alarm_message, error_message};
-pub use grbl::{
+pub use response::{parse_response, BuildOptions, LineBuffer, MachineState, Response, Status};
+pub use resume::{resume_preamble, ModalState, ResumeError};
+pub use streamer::{
     Aux, Event, LineRef, Progress, ResumeBasis, ResumePoint, StopReason, StreamError, Streamer,
     StreamerConfig,
 };
-pub use response::{parse_response, BuildOptions, LineBuffer, MachineState, Response, Status};
-pub use resume::{resume_preamble, ModalState, ResumeError};

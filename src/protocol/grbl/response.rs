@@ -229,7 +229,7 @@ pub struct BufferState {
 /// per configured axis in the controller's order (X Y Z, then A B C on grblHAL builds
 /// that have them). grbl sends either `MPos` or `WPos` (setting `$10`) and `WCO` only
 /// now and then (every 10–30 reports and when it changes), with `WPos = MPos − WCO`:
-/// keep the last `WCO` seen ([`crate::protocol::Streamer::last_wco`]) and use
+/// keep the last `WCO` seen ([`crate::protocol::grbl::Streamer::last_wco`]) and use
 /// [`Status::machine_position`] / [`Status::work_position`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Status {

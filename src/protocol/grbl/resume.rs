@@ -29,15 +29,15 @@
 //!   lines for exactly this reason).
 //!
 //! Only C is restored: the parser this module uses (the crate's own,
-//! [`crate::gcode::parse`](mod@crate::gcode::parse)) reads the subset our posts write and
+//! [`crate::post::gcode::parse`](mod@crate::post::gcode::parse)) reads the subset our posts write and
 //! common senders send, and a whirling program renames only C. A program that renames X
 //! or Z, or holds a line the parser cannot read before the resume line, is refused rather
 //! than resumed with modes guessed.
 
 use thiserror::Error;
 
-use crate::gcode::format::format_number;
-use crate::gcode::parse::{parse_line, GCode, MCode, ParseError, ParsedLine, WordKind};
+use crate::post::gcode::format::format_number;
+use crate::post::gcode::parse::{parse_line, GCode, MCode, ParseError, ParsedLine, WordKind};
 
 /// Millimetres per inch (grbl converts G20 feeds and lengths with it at parse time).
 const MM_PER_INCH: f64 = 25.4;
@@ -145,7 +145,7 @@ pub struct ModalState {
     /// The G92 offset of C.
     pub c_offset: COffset,
     /// C, degrees, in the controller's current frame, if the program has made it known
-    /// (taking no offset to be active at the start, as [`crate::gcode::Program::steps`]
+    /// (taking no offset to be active at the start, as [`crate::program::Program::steps`]
     /// does).
     pub c: Option<f64>,
     /// Unrebased C minus the frame's C; `None` once unknown.

@@ -1127,7 +1127,7 @@ fn line_number(text: &str) -> Option<u32> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::protocol::fake::Fake;
+    use crate::protocol::grbl::fake::Fake;
     use proptest::prelude::*;
 
     fn program(lines: &[&str]) -> Vec<String> {

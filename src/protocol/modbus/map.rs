@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use thiserror::Error;
 
-use crate::gcode::program::{Block, Program};
+use crate::program::{Block, Program};
 
 /// The controller's Modbus unit id.
 pub const UNIT_ID: u8 = 1;

@@ -5,7 +5,7 @@
 //!
 //! - [`map`]: the register map as values: addresses, control bits, alarm codes, the word
 //!   order of 32- and 64-bit values, [`map::Segment`]s from a planned
-//!   [`Program`](crate::gcode::program::Program) and their slots (sequence number, CRC),
+//!   [`Program`](crate::program::Program) and their slots (sequence number, CRC),
 //!   the identification and status blocks decoded.
 //! - [`RingWriter`]: one program streamed through the ring: what to request next, what
 //!   the answers mean.
@@ -1267,7 +1267,7 @@ mod tests {
     #[test]
     fn a_program_streams_from_its_blocks() {
         // segments() and the writer together: the program's blocks, then M2.
-        use crate::gcode::program::{Block, Program};
+        use crate::program::{Block, Program};
         let program = Program {
             blocks: vec![Block::SpindleOn { rpm: 1000.0 }, Block::SpindleOff],
         };

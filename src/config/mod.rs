@@ -1,0 +1,11 @@
+//! Configuration: what the user gives, read and checked.
+//!
+//! - [`job`]: the job file: the groove (with its profile points read and validated), the
+//!   tool and the cut.
+//! - [`machine`]: a machine profile: the controller's dialect and number type, travel,
+//!   rates and the spindle.
+//! - [`connection`]: a profile's `[connection]`: how the bridge reaches the machine.
+
+pub mod connection;
+pub mod job;
+pub mod machine;
