@@ -241,8 +241,9 @@ fn run(cli: Cli) -> Result<ExitCode> {
         } => {
             let machine = load_machine(machine.as_deref())?;
             let job = Job::load(&job)?;
-            let mut plan = whirl::plan::plan(&job, &machine)
+            let plan = whirl::plan::plan(&job, &machine)
                 .with_context(|| format!("cannot plan {}", job_name(&job)))?;
+            let mut verified = None;
             if verify {
                 let v = whirl::judge::verify::verify(&job, &machine, &plan.text, false)
                     .context("cannot verify the planned program")?;
@@ -258,9 +259,17 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     "verified: max overcut {:.5} mm, max undercut {:.5} mm over {} points (Δ {} mm)",
                     v.max_overcut_mm, v.max_undercut_mm, v.points, v.delta_mm
                 );
-                plan.report.verify = Some(v);
+                verified = Some(v);
             }
-            let json = serde_json::to_string_pretty(&plan.report)?;
+            let json = match &verified {
+                Some(verify) => {
+                    serde_json::to_string_pretty(&whirl::judge::verify::VerifiedReport {
+                        report: &plan.report,
+                        verify,
+                    })?
+                }
+                None => serde_json::to_string_pretty(&plan.report)?,
+            };
             // Everything is computed; only now is anything written.
             write_all(&[(Some(&output), &plan.text), (report.as_deref(), &json)])?;
             let r = &plan.report;
@@ -558,11 +567,11 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 }
                 LogCommand::Plot { log, output, job } => {
                     let read = whirl::log::read(&log)?;
-                    let mut plots = whirl::log::axis_plots(&read);
+                    let mut plots = whirl::judge::plots::axis_plots(&read);
                     if let Some(job) = job {
                         let job = Job::load(&job)?;
                         plots.push(
-                            whirl::log::section_plot(&read, &job)
+                            whirl::judge::plots::section_plot(&read, &job)
                                 .with_context(|| format!("{}", log.display()))?,
                         );
                     }
@@ -687,8 +696,8 @@ fn stream_can(
     };
     let bar = progress_bar(0);
     let options = CanOptions {
-        session: drives.session_config()?,
-        sample: drives.sample_config(machine),
+        session: whirl::protocol::canopen::session::SessionConfig::for_drives(drives)?,
+        sample: whirl::post::setpoints::SampleConfig::for_drives(machine, drives),
         clock: CanClock::Wall,
         answer_timeout: std::time::Duration::from_secs(1),
         program: input.display().to_string(),
@@ -724,7 +733,10 @@ fn stream_can(
 /// interface's is set by the system).
 fn can_bitrate(machine: &MachineProfile) -> Result<whirl::protocol::canopen::slcan::Bitrate> {
     Ok(match &machine.connection {
-        Some(whirl::config::connection::Connection::CanSlcan(s)) => s.slcan_bitrate()?,
+        Some(whirl::config::connection::Connection::CanSlcan(s)) => {
+            whirl::protocol::canopen::slcan::Bitrate::from_bits_per_second(s.bitrate)
+                .with_context(|| format!("{} bit/s is not an slcan rate", s.bitrate))?
+        }
         _ => whirl::protocol::canopen::slcan::Bitrate::M1,
     })
 }

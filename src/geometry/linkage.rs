@@ -7,7 +7,7 @@
 //! cutting-side angle C₀ and solved with Brent's method.
 
 use crate::geometry::brent;
-use crate::geometry::profile::ProfilePoint;
+use crate::geometry::profile::{surface_normal, ProfilePoint};
 use glam::{DVec2, DVec3};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -106,14 +106,6 @@ pub enum LinkageError {
         /// The edge's half arc.
         limit_deg: f64,
     },
-}
-
-/// Outward unit normal of the helical surface at the profile point `(pos, tangent)`, θ = 0:
-/// `n ∝ (p·y′, −p·x′, x·x′ + y·y′)`, oriented so that its in-plane part points away from the
-/// material (to the right of a tangent running with increasing polar angle).
-pub fn surface_normal(pos: DVec2, tangent: DVec2, p: f64) -> DVec3 {
-    let n = DVec3::new(p * tangent.y, -p * tangent.x, pos.dot(tangent));
-    (n * p.signum()).normalize()
 }
 
 /// Turn a vector about z by `c` radians.

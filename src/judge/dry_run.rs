@@ -18,6 +18,8 @@ use crate::judge::guard::DeltaGuard;
 use crate::judge::simulator;
 use crate::judge::verify::CheckError;
 use crate::log::{self, ExecLog, LogError};
+use crate::post::setpoints::SampleConfig;
+use crate::protocol::canopen::session::SessionConfig;
 use crate::protocol::grbl::codes::alarm_message;
 use crate::transport::{
     self, link_utilization, ProgressFn, StreamError, StreamOptions, StreamOutcome,
@@ -138,11 +140,11 @@ pub enum DryRunError {
     #[error("executed-path log: {0}")]
     Log(#[from] LogError),
     /// The program asks more of the machine than it has (checked before anything runs).
-    #[error("block {block} (block index) of the program: {source}", block = .source.block())]
+    #[error("move {index} of the program: {source}", index = .source.index())]
     Limits {
         /// What it asks.
         #[from]
-        source: crate::config::machine::LimitError,
+        source: crate::program::limits::LimitError,
     },
     /// The program cannot go through the Modbus register map.
     #[error("Modbus: {0}")]
@@ -445,7 +447,7 @@ pub async fn dry_run_modbus(
     use whirl_sim::modbus::serve::{serve_rtu, serve_tcp, ClockOptions};
     use whirl_sim::modbus::{Bank, BankOptions};
 
-    crate::config::machine::check_limits(program, machine)?;
+    crate::program::limits::check_limits(program, machine)?;
     let segments = crate::protocol::modbus::map::segments(program)
         .map_err(|e| DryRunError::Modbus(e.to_string()))?;
     let total = segments.len();
@@ -556,10 +558,11 @@ const CAN_SYNC_HOLD: Duration = Duration::from_secs(5);
 /// to start from: for external whirling it is concentric with the work, and the way out
 /// to the clear position would run its inserts through the blank.
 fn clear_start(program: &crate::program::Program) -> whirl_sim::Position {
-    use crate::program::{Axis, Pose};
+    use crate::config::machine::Axis;
+    use crate::program::Pose;
     let x = program
         .steps(Pose::known(0.0, 0.0, 0.0))
-        .find(|step| step.block.target().is_some())
+        .find(|step| step.action.target().is_some())
         .and_then(|step| step.to.get(Axis::X))
         .unwrap_or(0.0);
     whirl_sim::Position::from_array([x, 0.0, 0.0])
@@ -607,9 +610,9 @@ pub async fn dry_run_can(
     use whirl_sim::canopen::serve::{serve_slcan, ServeOptions};
     use whirl_sim::canopen::{Bus, BusConfig, BusEvent};
 
-    crate::config::machine::check_limits(program, machine)?;
+    crate::program::limits::check_limits(program, machine)?;
     let settings = |e: crate::config::connection::SettingError| DryRunError::Can(e.to_string());
-    let mut session = drives.session_config().map_err(settings)?;
+    let mut session = SessionConfig::for_drives(drives).map_err(settings)?;
     // Until the first SYNC the master and the simulated drives both run on the wall clock
     // of one host, which may pause either for longer than a bus ever would: such a pause
     // must not read as a dead drive. From the first SYNC on, heartbeats are exact.
@@ -638,7 +641,7 @@ pub async fn dry_run_can(
     };
     let options = CanOptions {
         session,
-        sample: drives.sample_config(machine),
+        sample: SampleConfig::for_drives(machine, drives),
         clock: CanClock::SyncLocked,
         answer_timeout: Duration::from_secs(5),
         program: name.to_owned(),

@@ -19,12 +19,13 @@
 //! The target is sampled over every start and the whole formed length, at axial steps of
 //! 8/7 of the feed per revolution: the steps walk through every phase of the feed scallop.
 
-use crate::geometry::linkage::{surface_normal, turn, Linkage, Torus};
+use crate::geometry::linkage::{turn, Linkage, Torus};
 use crate::geometry::minimise::scan_then_golden;
+use crate::geometry::profile::surface_normal;
 use crate::geometry::profile::Profile;
 use crate::judge::svg::{Plot, Series};
 use crate::plan::table::Table;
-use crate::program::{Block, Pose as GPose, Program};
+use crate::program::{Move, Pose as GPose, Program};
 use glam::{DVec2, DVec3};
 use serde::Serialize;
 use std::f64::consts::TAU;
@@ -87,7 +88,7 @@ pub enum VerifyError {
          one way, as every whirling program does"
     )]
     CNotMonotonic {
-        /// Block index where the direction changes.
+        /// Straight index where the direction changes.
         block: usize,
     },
     /// Z goes back and forth while C turns.
@@ -99,7 +100,7 @@ pub enum VerifyError {
     /// A move from an unknown position.
     #[error("block {block} moves before every axis has been positioned")]
     Unpositioned {
-        /// Block index.
+        /// Straight index.
         block: usize,
     },
     /// The linkage has no table for the groove (so no seeds to search from).
@@ -112,12 +113,12 @@ pub enum VerifyError {
 
 /// A straight move of the executed motion: X, Z in mm, C in radians, at both ends.
 #[derive(Debug, Clone, Copy)]
-struct Move {
+struct Straight {
     from: [f64; 3],
     to: [f64; 3],
 }
 
-impl Move {
+impl Straight {
     fn at(&self, t: f64) -> [f64; 3] {
         std::array::from_fn(|k| self.from[k] + t * (self.to[k] - self.from[k]))
     }
@@ -127,9 +128,9 @@ impl Move {
 #[derive(Debug, Clone)]
 pub struct Motion {
     /// Turning moves in order of C; `c_dir` tells which way C goes.
-    turning: Vec<Move>,
+    turning: Vec<Straight>,
     /// Moves at a fixed C.
-    still: Vec<Move>,
+    still: Vec<Straight>,
     c_dir: f64,
     /// Which way Z goes while C turns; 0 until it has moved.
     z_dir: f64,
@@ -141,8 +142,8 @@ impl Motion {
         let mut motion = Motion::empty();
         for step in program.steps(GPose::UNKNOWN) {
             if !matches!(
-                step.block,
-                Block::Rapid { .. } | Block::Feed { .. } | Block::Linked { .. }
+                step.action,
+                Move::Rapid { .. } | Move::Feed { .. } | Move::Linked { .. }
             ) {
                 continue;
             }
@@ -182,7 +183,7 @@ impl Motion {
     /// names it in errors. C must keep turning one way, and Z keep feeding one way while it
     /// does.
     pub fn push(&mut self, from: [f64; 3], to: [f64; 3], block: usize) -> Result<(), VerifyError> {
-        let m = Move {
+        let m = Straight {
             from: [from[0], from[1], from[2].to_radians()],
             to: [to[0], to[1], to[2].to_radians()],
         };
@@ -237,7 +238,7 @@ impl Motion {
 
     /// The pose (X, Z, C) where the turning motion passes C = `c` (clamped to its range).
     fn at_c(&self, c: f64) -> [f64; 3] {
-        let key = |m: &Move| m.to[2] * self.c_dir;
+        let key = |m: &Straight| m.to[2] * self.c_dir;
         let i = self
             .turning
             .partition_point(|m| key(m) < c * self.c_dir)

@@ -6,12 +6,14 @@
 //!   [`guard`] its Δ guard, [`cycles`] the drives' cycles merged into moves.
 //! - [`dry_run`]: a planned job run on the simulator through the same transports a
 //!   machine gets, its error measured by the guard.
-//! - [`svg`]: the plots.
+//! - [`plots`]: a run's axes over time and the section it cut, from its log; [`svg`]
+//!   draws them.
 
 pub mod cycles;
 pub mod dry_run;
 pub mod guard;
 pub mod measure;
+pub mod plots;
 pub mod simulator;
 pub mod svg;
 pub mod verify;

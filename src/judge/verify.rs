@@ -5,6 +5,7 @@ use crate::config::job::{Job, JobError};
 use crate::config::machine::MachineProfile;
 use crate::geometry::linkage::Linkage;
 use crate::judge::measure::{Measurement, Motion, PointError, Target, VerifyError};
+use crate::plan::Report;
 use crate::post::gcode::parse::{read_program, ParseError};
 use serde::Serialize;
 
@@ -28,6 +29,17 @@ pub struct Verification {
     /// The section picture (SVG), when asked for.
     #[serde(skip)]
     pub svg: Option<String>,
+}
+
+/// A plan's report with the engine's measurement of its program beside it, as
+/// `whirl plan --verify --report` writes it: the report's keys, then `verify`.
+#[derive(Debug, Clone, Serialize)]
+pub struct VerifiedReport<'a> {
+    /// The plan's figures.
+    #[serde(flatten)]
+    pub report: &'a Report,
+    /// What the engine measured of the planned program.
+    pub verify: &'a Verification,
 }
 
 /// Why a program could not be measured.

@@ -156,7 +156,7 @@ fn deepest(
 mod tests {
     use super::*;
     use crate::geometry::linkage::{Ring, Whirling};
-    use crate::testing::lobe;
+    use crate::geometry::profile::testing::lobe;
     use std::f64::consts::{PI, TAU};
 
     fn setup(radius: f64, delta_deg: f64, lead: f64) -> (Profile, Table, Linkage) {

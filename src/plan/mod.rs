@@ -12,12 +12,14 @@ pub mod segment;
 pub mod table;
 
 use crate::config::job::{Job, JobError};
-use crate::config::machine::{self, MachineProfile};
+use crate::config::machine::MachineProfile;
 use crate::geometry::linkage::{Linkage, Ring, Whirling};
 use crate::geometry::profile::{ConcaveStretch, Profile};
 use crate::plan::table::{Table, TableError};
 use crate::post::gcode::format::decimals_for;
 use crate::post::gcode::writer::{self, PostSettings};
+use crate::program::limits::{check_limits, LimitError};
+use crate::program::timing::cycle_time_s;
 use crate::program::Program;
 use budget::{Budget, BudgetError};
 use interference::Interference;
@@ -76,9 +78,6 @@ pub struct Report {
     pub decimals: [u32; 2],
     /// Lines of program text.
     pub lines: usize,
-    /// The swept-volume engine's measurement of the program (`whirl plan --verify`).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub verify: Option<crate::judge::verify::Verification>,
 }
 
 /// Why a job cannot be planned.
@@ -134,8 +133,11 @@ pub enum PlanError {
     #[error("number format: {0}")]
     Format(String),
     /// The machine cannot run it.
-    #[error("machine limits: {0}")]
-    Limits(String),
+    #[error("machine limits: move {index} of the planned path: {limit}", index = .limit.index())]
+    Limits {
+        /// What the planned path asks too much of.
+        limit: LimitError,
+    },
     /// The post-processor refused it.
     #[error(transparent)]
     Post(#[from] writer::PostError),
@@ -275,8 +277,7 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         delta
     );
     let path = path::build(&nodes, &spec, &title);
-    machine::check_limits(&path.program, machine)
-        .map_err(|e| PlanError::Limits(format!("block {} of the planned path: {e}", e.block())))?;
+    check_limits(&path.program, machine).map_err(|limit| PlanError::Limits { limit })?;
     let settings = PostSettings {
         dialect: machine.dialect,
         linear_decimals: linear,
@@ -296,14 +297,13 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         rounding_mm: rounding,
         max_error_mm: nodes.max_error + tolerance + scallop + cusp + blend + rounding,
         delta_mm: delta,
-        cycle_time_s: machine::cycle_time_s(&path.program, machine),
+        cycle_time_s: cycle_time_s(&path.program, machine),
         installation_angle_deg: ring.installation.to_degrees(),
         revolutions: path.revolutions,
         z_range_mm: [z_from, z_to],
         overrun_mm: (z_hi - z_lo) + 2.0 * feed,
         decimals: [linear, angular],
         lines: text.lines().count(),
-        verify: None,
     };
     Ok(Plan {
         program: path.program,

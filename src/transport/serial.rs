@@ -45,9 +45,10 @@ use tokio::time::{interval_at, sleep_until, Instant, Interval, MissedTickBehavio
 use tokio_serial::SerialPortBuilderExt;
 use tracing::Instrument;
 
-use crate::config::machine::{check_limits, LimitError, MachineProfile};
+use crate::config::machine::MachineProfile;
 use crate::log::{self, ExecLog, LogError};
 use crate::post::gcode::parse::{read_program_with_lines, ParseError};
+use crate::program::limits::{check_limits, LimitError};
 use crate::protocol::grbl::{
     self, Event, LineRef, MachineState, Progress, ResumePoint, Status, StopReason, Streamer,
     StreamerConfig,
@@ -354,7 +355,7 @@ pub fn check_program(lines: &[String], machine: &MachineProfile) -> Result<(), P
     let (program, block_lines) = read_program_with_lines(&lines.join("\n"), machine.x_diameter())
         .map_err(PreflightError::Parse)?;
     check_limits(&program, machine).map_err(|source| PreflightError::Limits {
-        line: block_lines[source.block()],
+        line: block_lines[source.index()],
         source,
     })
 }

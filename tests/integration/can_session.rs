@@ -8,10 +8,11 @@
 use std::time::Duration;
 
 use crate::util;
+use whirl::config::machine::Axis;
 use whirl::config::machine::MachineProfile;
 use whirl::judge::simulator::machine;
 use whirl::post::setpoints::{sample, SampleConfig, SetPoints};
-use whirl::program::{Axis, Block, Pose, Program};
+use whirl::program::{Move, Pose, Program};
 use whirl::protocol::canopen::session::{Event, Phase, Session, SessionConfig, StopReason};
 use whirl::protocol::canopen::slcan::{Bitrate, Command, Decoder, Received};
 use whirl_sim::canopen::{Bus, BusConfig, BusEvent, PowerState};
@@ -157,7 +158,7 @@ fn counts(p: Position) -> [i64; 3] {
 fn segments(program: &Program) -> Vec<([f64; 3], [f64; 3])> {
     program
         .steps(Pose::known(0.0, 0.0, 0.0))
-        .filter(|s| s.block.target().is_some())
+        .filter(|s| s.action.target().is_some())
         .map(|s| {
             let at = |p: Pose| Axis::ALL.map(|a| p.get(a).unwrap());
             (at(s.from), at(s.to))
@@ -193,11 +194,11 @@ fn a_planned_program_runs_on_three_simulated_drives_set_point_by_set_point() {
         .any(|e| matches!(e, Event::Late { .. } | Event::Stopped { .. })));
     // M3 before the plunge (after the lead-in's rapids), M5 after the retract.
     let m3 = program
-        .blocks
+        .moves
         .iter()
-        .position(|b| matches!(b, Block::SpindleOn { .. }))
+        .position(|b| matches!(b, Move::SpindleOn { .. }))
         .unwrap();
-    assert!(matches!(program.blocks[m3 + 1], Block::Feed { .. }));
+    assert!(matches!(program.moves[m3 + 1], Move::Feed { .. }));
     let spindle: Vec<&Event> = rig
         .events
         .iter()
@@ -211,7 +212,7 @@ fn a_planned_program_runs_on_three_simulated_drives_set_point_by_set_point() {
                 rpm: Some(1500.0)
             },
             &Event::Spindle {
-                block: program.blocks.len() - 1,
+                block: program.moves.len() - 1,
                 rpm: None
             }
         ]

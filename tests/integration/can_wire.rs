@@ -17,10 +17,11 @@ use crate::util;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio_serial::SerialPort;
 use whirl::config::connection::{DriveMode, DriveSettings};
+use whirl::config::machine::Axis;
 use whirl::config::machine::MachineProfile;
 use whirl::log::{self, ExecLog};
-use whirl::post::setpoints::{sample, SetPoints};
-use whirl::program::{Axis, Block, Pose, Program};
+use whirl::post::setpoints::{sample, SampleConfig, SetPoints};
+use whirl::program::{Move, Pose, Program};
 use whirl::protocol::canopen::cia301::NodeId;
 use whirl::protocol::canopen::session::{SessionConfig, StopReason};
 use whirl::protocol::canopen::slcan::Bitrate;
@@ -63,13 +64,13 @@ fn program(profile: &MachineProfile) -> Program {
 /// A program of a few cycles: a rapid of 0.1 mm on X and back.
 fn tiny_program() -> Program {
     Program {
-        blocks: vec![
-            Block::Rapid {
+        moves: vec![
+            Move::Rapid {
                 x: Some(0.1),
                 z: None,
                 c: None,
             },
-            Block::Rapid {
+            Move::Rapid {
                 x: Some(0.0),
                 z: None,
                 c: None,
@@ -102,11 +103,9 @@ fn options(profile: &MachineProfile, drives: &DriveSettings) -> CanOptions {
             // bridge on one busy test machine: an SDO answer may wait for a scheduler
             // slice far longer than on a bus. Everything after runs on the SYNC's clock.
             sdo_timeout: Duration::from_secs(1),
-            ..drives
-                .session_config()
-                .expect("the profile's drive settings")
+            ..SessionConfig::for_drives(drives).expect("the profile's drive settings")
         },
-        sample: drives.sample_config(profile),
+        sample: SampleConfig::for_drives(profile, drives),
         clock: CanClock::SyncLocked,
         answer_timeout: Duration::from_secs(5),
         program: "double-start (short)".to_owned(),
@@ -252,7 +251,7 @@ async fn every_set_point_executes_once(mode: DriveMode) {
     let expected: SetPoints = sample(
         &program,
         Pose::known(0.0, 0.0, 0.0),
-        &drives.sample_config(&profile),
+        &SampleConfig::for_drives(&profile, &drives),
     )
     .unwrap();
     let bus = bus(&profile, &drives);

@@ -230,7 +230,7 @@ fn a_program_past_the_machine_travel_is_refused_naming_the_axis() {
 }
 
 #[test]
-fn a_program_faster_than_an_axis_can_move_is_refused_naming_the_block() {
+fn a_program_faster_than_an_axis_can_move_is_refused_naming_the_move() {
     let dir = tempfile::tempdir().unwrap();
     // At 150 rpm the lobe's X swings 8 mm in a quarter of a workpiece turn (0.1 s): about
     // 4800 mm/min, beyond the simulator's 3000 mm/min. The ring speed goes up too, so the
@@ -244,7 +244,7 @@ fn a_program_faster_than_an_axis_can_move_is_refused_naming_the_block() {
         msg.contains("X speed") && msg.contains("max_rate 3000"),
         "{msg}"
     );
-    assert!(msg.contains("block "), "{msg}");
+    assert!(msg.contains("move "), "{msg}");
 }
 
 #[test]

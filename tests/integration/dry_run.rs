@@ -230,7 +230,8 @@ fn every_example_dry_runs_within_delta_over_modbus_tcp_and_rtu() {
 
 #[test]
 fn every_example_dry_runs_within_delta_on_can_drives_over_slcan() {
-    use whirl::program::{Axis, Pose};
+    use whirl::config::machine::Axis;
+    use whirl::program::Pose;
     let profile_path = util::root().join("machine-profiles/canopen-drives.toml");
     let profile = whirl::config::machine::MachineProfile::load(&profile_path).unwrap();
     let drives = profile

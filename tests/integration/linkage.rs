@@ -4,7 +4,8 @@
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
 use std::f64::consts::{PI, TAU};
-use whirl::geometry::linkage::{surface_normal, turn, Linkage, Ring, Whirling};
+use whirl::geometry::linkage::{turn, Linkage, Ring, Whirling};
+use whirl::geometry::profile::surface_normal;
 use whirl::geometry::profile::ProfilePoint;
 
 /// The profile point at polar angle φ, its tangent running with φ (optionally mirrored y → −y,

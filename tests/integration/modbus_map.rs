@@ -117,7 +117,7 @@ fn a_planned_program_streams_through_the_register_map_each_segment_once() {
     let plan = whirl::plan::plan(&job, &profile).unwrap();
     // The lead-in (rapids, spindle on, plunge) and a few hundred linked moves.
     let program = Program {
-        blocks: plan.program.blocks[..300].to_vec(),
+        moves: plan.program.moves[..300].to_vec(),
     };
     let segments = map::segments(&program).unwrap();
     let count = segments.len() as u32;
@@ -134,13 +134,13 @@ fn a_planned_program_streams_through_the_register_map_each_segment_once() {
     let start = ControllerOptions::default().start.to_array();
     let steps: Vec<_> = program
         .steps(Pose::known(start[0], start[1], start[2]))
-        .filter(|s| !matches!(s.block, whirl::program::Block::Comment(_)))
+        .filter(|s| !matches!(s.action, whirl::program::Move::Comment(_)))
         .collect();
     assert_eq!(steps.len() + 1, segments.len(), "M2 is added at the end");
     let moving: Vec<u32> = steps
         .iter()
         .zip(1..)
-        .filter(|(s, _)| s.block.target().is_some() && s.from != s.to)
+        .filter(|(s, _)| s.action.target().is_some() && s.from != s.to)
         .map(|(_, sequence)| sequence)
         .collect();
     let end = steps.last().unwrap().to;

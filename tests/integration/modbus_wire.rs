@@ -25,7 +25,7 @@ use whirl::config::job::Job;
 use whirl::config::machine::MachineProfile;
 use whirl::judge::dry_run::MODBUS_TIME_SCALE;
 use whirl::log::ExecLog;
-use whirl::program::{Block, Pose, Program};
+use whirl::program::{Move, Pose, Program};
 use whirl::protocol::modbus::map::{self, AlarmCode, Segment, WordOrder};
 use whirl::protocol::modbus::{Exception, WriterError, WriterOptions};
 use whirl::transport::modbus::{stream_modbus, ModbusLink, ModbusOptions, ModbusOutcome};
@@ -328,13 +328,13 @@ fn planned() -> &'static Program {
 /// plunge, then linked moves) and its lead-out (everything after the last linked move),
 /// as segments, with the sequence numbers of those that move the machine.
 fn program(blocks: usize) -> (Vec<Segment>, Vec<u32>) {
-    let all = &planned().blocks;
+    let all = &planned().moves;
     let last_linked = all
         .iter()
-        .rposition(|b| matches!(b, Block::Linked { .. }))
+        .rposition(|b| matches!(b, Move::Linked { .. }))
         .unwrap();
     let program = Program {
-        blocks: all[..blocks]
+        moves: all[..blocks]
             .iter()
             .chain(&all[last_linked + 1..])
             .cloned()
@@ -347,9 +347,9 @@ fn program(blocks: usize) -> (Vec<Segment>, Vec<u32>) {
     let start = ControllerOptions::default().start.to_array();
     let moving = program
         .steps(Pose::known(start[0], start[1], start[2]))
-        .filter(|s| !matches!(s.block, Block::Comment(_)))
+        .filter(|s| !matches!(s.action, Move::Comment(_)))
         .zip(1..)
-        .filter(|(s, _)| s.block.target().is_some() && s.from != s.to)
+        .filter(|(s, _)| s.action.target().is_some() && s.from != s.to)
         .map(|(_, sequence)| sequence)
         .collect();
     (segments, moving)

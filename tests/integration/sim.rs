@@ -54,7 +54,7 @@ fn a_planned_program_runs_on_the_simulator_line_by_line_and_ends_where_it_says()
     let program = whirl::post::gcode::parse::read_program(&lines.join("\n"), false).unwrap();
     let end = program
         .steps(Pose::UNKNOWN)
-        .filter_map(|s| s.block.target().map(|_| s.to))
+        .filter_map(|s| s.action.target().map(|_| s.to))
         .last()
         .unwrap();
     for _ in 0..100_000 {

@@ -17,7 +17,7 @@ use whirl::geometry::linkage::Whirling;
 use whirl::geometry::profile::Profile;
 use whirl::judge::measure::{Motion, Target};
 use whirl::post::gcode::parse::read_program;
-use whirl::program::{Block, Pose as GPose, Program};
+use whirl::program::{Move, Pose as GPose, Program};
 
 /// The ring at one executed pose, with the trigonometry of C done once.
 #[derive(Clone, Copy)]
@@ -67,7 +67,7 @@ impl Ring {
 fn linked_path(program: &Program) -> Vec<[f64; 3]> {
     let mut out: Vec<[f64; 3]> = Vec::new();
     for step in program.steps(GPose::UNKNOWN) {
-        if let Block::Linked { .. } = step.block {
+        if let Move::Linked { .. } = step.action {
             let from = step.from;
             let to = step.to;
             if out.is_empty() {
@@ -260,20 +260,18 @@ fn the_brute_force_sees_a_coarse_program() {
     // Drop every other linked move: spans twice as long break the interpolation bound, and the
     // check must see it (it is no use if it passes everything).
     let (job, profile, delta_deg, program, _) = planned("double-start");
-    // A move that a G92 rebase follows stays, so the rebase still names the right position.
     let mut keep = true;
-    let mut blocks = Vec::new();
-    for (i, b) in program.blocks.iter().enumerate() {
-        let before_rebase = matches!(program.blocks.get(i + 1), Some(Block::RebaseC { .. }));
-        if let Block::Linked { .. } = b {
+    let mut moves = Vec::new();
+    for action in &program.moves {
+        if let Move::Linked { .. } = action {
             keep = !keep;
-            if !keep && !before_rebase {
+            if !keep {
                 continue;
             }
         }
-        blocks.push(b.clone());
+        moves.push(action.clone());
     }
-    let coarse = Program { blocks };
+    let coarse = Program { moves };
     let m = measure(&job, &profile, delta_deg, &coarse);
     engine_agrees(&job, &profile, &coarse, &m);
     assert!(

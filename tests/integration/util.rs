@@ -148,15 +148,15 @@ pub fn python_with(module: &str, package: &str) -> bool {
 pub fn short_double_start(
     profile: &whirl::config::machine::MachineProfile,
 ) -> whirl::program::Program {
-    use whirl::program::{Block, Program};
+    use whirl::program::{Move, Program};
     let job = whirl::config::job::Job::load(&example("double-start")).unwrap();
-    let blocks = whirl::plan::plan(&job, profile).unwrap().program.blocks;
+    let blocks = whirl::plan::plan(&job, profile).unwrap().program.moves;
     let last_linked = blocks
         .iter()
-        .rposition(|b| matches!(b, Block::Linked { .. }))
+        .rposition(|b| matches!(b, Move::Linked { .. }))
         .unwrap();
-    let mut short: Vec<Block> = blocks[..200].to_vec();
+    let mut short: Vec<Move> = blocks[..200].to_vec();
     short.extend_from_slice(&blocks[last_linked + 1..]);
-    assert!(matches!(short.last(), Some(Block::SpindleOff)));
-    Program { blocks: short }
+    assert!(matches!(short.last(), Some(Move::SpindleOff)));
+    Program { moves: short }
 }

@@ -16,12 +16,22 @@
 pub mod points;
 pub mod spline;
 pub mod standard;
+#[cfg(test)]
+pub(crate) mod testing;
 
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 use num_complex::Complex64;
 use spline::Spline;
 use standard::AxialPiece;
 use std::f64::consts::PI;
+
+/// Outward unit normal of the helical surface at the profile point `(pos, tangent)`, θ = 0:
+/// `n ∝ (p·y′, −p·x′, x·x′ + y·y′)`, oriented so that its in-plane part points away from the
+/// material (to the right of a tangent running with increasing polar angle).
+pub fn surface_normal(pos: DVec2, tangent: DVec2, p: f64) -> DVec3 {
+    let n = DVec3::new(p * tangent.y, -p * tangent.x, pos.dot(tangent));
+    (n * p.signum()).normalize()
+}
 
 /// A point of the transverse profile with its first-order geometry.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -303,8 +313,8 @@ impl Profile {
         found
     }
 
-    fn normal3(&self, pos: DVec2, tangent: DVec2, p: f64) -> glam::DVec3 {
-        crate::geometry::linkage::surface_normal(pos, tangent, p)
+    fn normal3(&self, pos: DVec2, tangent: DVec2, p: f64) -> DVec3 {
+        surface_normal(pos, tangent, p)
     }
 
     /// Normal curvature of the helical surface at `(u, θ = 0)` across the groove (positive where
@@ -313,7 +323,7 @@ impl Profile {
     fn cross_curvature(&self, u: f64, p: f64) -> (f64, f64) {
         use glam::DVec3;
         let (pos, d1, d2) = self.derivatives(u);
-        let n = crate::geometry::linkage::surface_normal(pos, d1, p);
+        let n = surface_normal(pos, d1, p);
         let su = DVec3::new(d1.x, d1.y, 0.0);
         let st = DVec3::new(-pos.y, pos.x, p);
         let suu = DVec3::new(d2.x, d2.y, 0.0);

@@ -23,12 +23,22 @@
 //!
 //! G92.1 takes no axis words: as in LinuxCNC and grbl, axis words on its line are a
 //! move in the current motion mode, made after the offset is cancelled.
+//!
+//! # G92, undone
+//!
+//! A [`Program`] has one continuous frame, so the reader undoes G92's renaming of C as it
+//! goes: every C it gives is in the controller's frame at the program's start (taken to
+//! have no offset active then), counting whole turns across any G92. A G92 that renames a
+//! C no line has positioned yet anchors the frame there (C takes the new name's value);
+//! turns and speeds stay right. A G92.1 after such a renaming is refused: the controller
+//! then reads a C whose relation to the program's frame nobody knows.
 
 use std::fmt;
 
 use thiserror::Error;
 
-use crate::program::{Axis, Block, Program};
+use crate::config::machine::Axis;
+use crate::program::{Move, Program};
 
 /// Millimetres per inch, for G20 programs.
 const MM_PER_INCH: f64 = 25.4;
@@ -334,6 +344,12 @@ pub enum ParseErrorKind {
     /// G92 on a linear axis.
     #[error("G92 {0}: only C can be renamed in a whirling program")]
     G92OnLinearAxis(char),
+    /// G92.1 after G92 renamed a C that no line had positioned.
+    #[error(
+        "G92.1 after G92 renamed C before any line positioned it: where C stands afterwards \
+         is unknown, so the program has no continuous C (position C before renaming it)"
+    )]
+    LostC,
     /// A Y word on a motion.
     #[error("Y word: a whirling machine has no Y axis")]
     YAxis,
@@ -572,17 +588,18 @@ struct State {
     spindle_on: bool,
     /// Controller position: X radius mm, Z mm, C degrees (in the G92-renamed frame).
     position: [Option<f64>; 3],
-    /// The G92 offset of C: unrebased C minus the controller's C. Zero at the start (no
-    /// offset is taken to be active then, as [`Program::steps`] takes it), unknown after
-    /// G92 renames a C whose position is unknown.
-    c_offset: Option<f64>,
+    /// The program's continuous C minus the controller's (G92-renamed) C: zero at the
+    /// start (no offset is taken to be active then).
+    c_offset: f64,
+    /// A G92 renamed a C whose position was unknown, anchoring the continuous frame there.
+    c_anchored: bool,
 }
 
 /// Builds the program a controller would run from `lines`, starting in the modes the
 /// writers' preamble sets and grbl starts in (G21 G90 G94, no motion mode) and with X
 /// read as a diameter when `x_diameter` (until G7/G8 says otherwise). Positions are
-/// absolute mm (X a radius) and degrees, in the controller's C frame (G92 C becomes
-/// [`Block::RebaseC`], G92.1 [`Block::ClearRebase`]); see the module docs.
+/// absolute mm (X a radius) and degrees, C in one continuous frame (G92 undone); see the
+/// module docs.
 pub fn to_program(lines: &[ParsedLine], x_diameter: bool) -> Result<Program, ParseError> {
     to_program_with_lines(lines, x_diameter).map(|(program, _)| program)
 }
@@ -602,19 +619,20 @@ fn to_program_with_lines(
         rpm: None,
         spindle_on: false,
         position: [None; 3],
-        c_offset: Some(0.0),
+        c_offset: 0.0,
+        c_anchored: false,
     };
     let mut program = Program::default();
     let mut block_lines = Vec::new();
     for line in lines {
-        let ended = run_line(line, &mut state, &mut program.blocks).map_err(|(column, kind)| {
+        let ended = run_line(line, &mut state, &mut program.moves).map_err(|(column, kind)| {
             ParseError {
                 line: line.number,
                 column,
                 kind,
             }
         })?;
-        block_lines.resize(program.blocks.len(), line.number);
+        block_lines.resize(program.moves.len(), line.number);
         if ended {
             break;
         }
@@ -626,7 +644,7 @@ fn to_program_with_lines(
 fn run_line(
     line: &ParsedLine,
     state: &mut State,
-    blocks: &mut Vec<Block>,
+    blocks: &mut Vec<Move>,
 ) -> Result<bool, (usize, ParseErrorKind)> {
     let has_g = |g: GCode| line.words.iter().find(|w| w.kind == WordKind::G(g));
     let has_m = |m: MCode| line.words.iter().find(|w| w.kind == WordKind::M(m));
@@ -646,7 +664,7 @@ fn run_line(
         })
     };
 
-    blocks.extend(line.comments.iter().cloned().map(Block::Comment));
+    blocks.extend(line.comments.iter().cloned().map(Move::Comment));
 
     // Feed mode, then F: a feed-mode change forgets the units-per-minute feed, as grbl does.
     let mode_change = if has_g(GCode::InverseTime).is_some() {
@@ -677,15 +695,15 @@ fn run_line(
             .filter(|&rpm| rpm > 0.0)
             .ok_or((word.column, ParseErrorKind::SpindleSpeedMissing))?;
         state.spindle_on = true;
-        blocks.push(Block::SpindleOn { rpm });
+        blocks.push(Move::SpindleOn { rpm });
     } else if has_m(MCode::SpindleOff).is_some() {
         state.spindle_on = false;
-        blocks.push(Block::SpindleOff);
+        blocks.push(Move::SpindleOff);
     } else if let (Some((rpm, column)), true) = (value('S'), state.spindle_on) {
         if rpm <= 0.0 {
             return Err((column, ParseErrorKind::SpindleSpeedMissing));
         }
-        blocks.push(Block::SpindleOn { rpm });
+        blocks.push(Move::SpindleOn { rpm });
     }
 
     // Lathe mode, units, distance mode (plane and path control change nothing here).
@@ -721,13 +739,12 @@ fn run_line(
 
     // G92.1 (never on a line with G92, its modal group): cancel the offset, so the
     // controller's C is the unrebased one; axis words on the line are a move after it.
-    if has_g(GCode::ClearOffset).is_some() {
-        state.position[2] = match (state.position[2], state.c_offset) {
-            (Some(c), Some(offset)) => Some(c + offset),
-            _ => None,
-        };
-        state.c_offset = Some(0.0);
-        blocks.push(Block::ClearRebase);
+    if let Some(g92_1) = has_g(GCode::ClearOffset) {
+        if state.c_anchored {
+            return Err((g92_1.column, ParseErrorKind::LostC));
+        }
+        state.position[2] = state.position[2].map(|c| c + state.c_offset);
+        state.c_offset = 0.0;
     }
 
     // G92: rename the current position; C only, and never incremental.
@@ -738,12 +755,14 @@ fn run_line(
         for word in &axis_words {
             match word.kind {
                 WordKind::C(c) => {
-                    state.c_offset = match (state.position[2], state.c_offset) {
-                        (Some(old), Some(offset)) => Some(old + offset - c),
-                        _ => None,
-                    };
+                    match state.position[2] {
+                        Some(old) => state.c_offset += old - c,
+                        None => {
+                            state.c_offset = 0.0;
+                            state.c_anchored = true;
+                        }
+                    }
                     state.position[2] = Some(c);
-                    blocks.push(Block::RebaseC { c });
                 }
                 other => {
                     return Err((word.column, ParseErrorKind::G92OnLinearAxis(other.letter())))
@@ -782,7 +801,7 @@ fn motion_block(
     axis_words: &[&Word],
     f: Option<(f64, usize)>,
     column: usize,
-) -> Result<Block, (usize, ParseErrorKind)> {
+) -> Result<Move, (usize, ParseErrorKind)> {
     let unit = if state.inch { MM_PER_INCH } else { 1.0 };
     let mut targets: [Option<f64>; 3] = [None; 3];
     for word in axis_words {
@@ -804,11 +823,12 @@ fn motion_block(
             written
         });
     }
+    let continuous = |c: f64| c + state.c_offset;
     let block = match motion {
-        GCode::Rapid => Block::Rapid {
+        GCode::Rapid => Move::Rapid {
             x: targets[0],
             z: targets[1],
-            c: targets[2],
+            c: targets[2].map(continuous),
         },
         _ if state.inverse_time => {
             let (per_minute, f_column) =
@@ -822,10 +842,10 @@ fn motion_block(
                     .or(state.position[slot])
                     .ok_or((column, ParseErrorKind::UnknownPosition(axis)))?;
             }
-            Block::Linked {
+            Move::Linked {
                 x: full[0],
                 z: full[1],
-                c: full[2],
+                c: continuous(full[2]),
                 minutes: 1.0 / per_minute,
             }
         }
@@ -834,10 +854,10 @@ fn motion_block(
             if feed <= 0.0 {
                 return Err((f.map_or(column, |(_, c)| c), ParseErrorKind::ZeroFeed));
             }
-            Block::Feed {
+            Move::Feed {
                 x: targets[0],
                 z: targets[1],
-                c: targets[2],
+                c: targets[2].map(continuous),
                 feed: feed * unit,
             }
         }
@@ -936,61 +956,61 @@ G0 X99
 ";
         let program = read_program(text, false).unwrap();
         let expected = vec![
-            Block::Comment("start".into()),
-            Block::SpindleOn { rpm: 3000.0 },
-            Block::Rapid {
+            Move::Comment("start".into()),
+            Move::SpindleOn { rpm: 3000.0 },
+            Move::Rapid {
                 x: Some(12.0),
                 z: Some(-1.0),
                 c: Some(0.0),
             },
-            Block::Feed {
+            Move::Feed {
                 x: Some(10.5),
                 z: None,
                 c: None,
                 feed: 200.0,
             },
-            Block::Linked {
+            Move::Linked {
                 x: 10.5,
                 z: -0.5,
                 c: 90.0,
                 minutes: 0.01,
             },
-            Block::Comment("relative".into()),
-            Block::Linked {
+            Move::Comment("relative".into()),
+            Move::Linked {
                 x: 10.5,
                 z: -0.5,
                 c: 180.0,
                 minutes: 0.02,
             },
-            Block::RebaseC { c: 0.0 },
-            Block::Feed {
+            Move::Feed {
                 x: Some(15.0),
                 z: None,
                 c: None,
                 feed: 500.0,
             },
-            Block::Feed {
+            Move::Feed {
                 x: None,
                 z: Some(25.4),
                 c: None,
                 feed: 254.0,
             },
-            Block::Rapid {
+            Move::Rapid {
                 x: Some(25.4),
                 z: None,
                 c: None,
             },
-            Block::SpindleOn { rpm: 2000.0 },
-            Block::SpindleOff,
+            Move::SpindleOn { rpm: 2000.0 },
+            Move::SpindleOff,
         ];
-        assert_eq!(program.blocks, expected);
+        assert_eq!(program.moves, expected);
     }
 
     #[test]
-    fn g92_1_clears_the_offset_and_c_reads_unrebased() {
-        // C10 renamed as 0 (an offset of 10), a relative move to 5, G92.1: the controller
-        // reads 15, so the relative C5 goes to 20, and a G93 move without C stays at 20.
-        // G92.1 with axis words clears, then moves them in the current motion mode.
+    fn g92_is_undone_and_c_counts_on_in_one_frame() {
+        // C10 renamed as 0 (an offset of 10), a relative move to 5 (15 in the program's
+        // frame), G92.1: the controller reads 15, so the relative C5 goes to 20, and a G93
+        // move without C stays at 20. G92.1 with axis words clears, then moves them in
+        // the current motion mode.
         let text = "\
 G0 X1 Z0 C10
 G92 C0
@@ -1000,47 +1020,71 @@ G0 C5
 G90 G93 G1 Z1 F10
 G92.1 G0 C0
 ";
-        let program = read_program(text, false).unwrap();
-        let c = |c: f64| Block::Rapid {
+        let (program, lines) = read_program_with_lines(text, false).unwrap();
+        let c = |c: f64| Move::Rapid {
             x: None,
             z: None,
             c: Some(c),
         };
         let expected = vec![
-            Block::Rapid {
+            Move::Rapid {
                 x: Some(1.0),
                 z: Some(0.0),
                 c: Some(10.0),
             },
-            Block::RebaseC { c: 0.0 },
-            c(5.0),
-            Block::ClearRebase,
+            c(15.0),
             c(20.0),
-            Block::Linked {
+            Move::Linked {
                 x: 1.0,
                 z: 1.0,
                 c: 20.0,
                 minutes: 0.1,
             },
-            Block::ClearRebase,
             c(0.0),
         ];
-        assert_eq!(program.blocks, expected);
-        // The continuous frame agrees: 10, then +5, then +5, then back to 0.
-        let continuous: Vec<Option<f64>> = program
+        assert_eq!(program.moves, expected);
+        assert_eq!(lines, [1, 3, 5, 6, 7]);
+    }
+
+    #[test]
+    fn two_turns_renamed_to_zero_are_still_two_turns() {
+        // 720° renamed as 0°: the move to 60° in the renamed frame is a turn of 60° to
+        // 780°, whole turns kept, and so is one after a second renaming.
+        let text = "G0 X10 Z0 C0\nG93 G1 Z1 C720 F90\nG92 C0\nG1 Z1.1 C60 F1000\n\
+                    G92 C30\nG1 Z1.2 C40 F1000\n";
+        let program = read_program(text, false).unwrap();
+        let c: Vec<Option<f64>> = program
             .steps(crate::program::Pose::UNKNOWN)
             .map(|s| s.to.c)
             .collect();
-        assert_eq!(
-            continuous,
-            [10.0, 10.0, 15.0, 15.0, 20.0, 20.0, 20.0, 0.0].map(Some)
+        assert_eq!(c, [0.0, 720.0, 780.0, 790.0].map(Some));
+    }
+
+    #[test]
+    fn renaming_an_unknown_c_anchors_the_frame_and_clearing_it_is_refused() {
+        // C never positioned: G92 C30 anchors the frame there, so C40 is 10° on.
+        let program = read_program("G92 C30\nG0 C40\nG92 C0\nG0 C5\n", false).unwrap();
+        let c: Vec<Option<f64>> = program
+            .moves
+            .iter()
+            .map(|m| m.target().unwrap().c)
+            .collect();
+        assert_eq!(c, [Some(40.0), Some(45.0)]);
+        // Clearing that renaming leaves C where nobody knows.
+        let e = err("G92 C30\nG0 C40\nG92.1\nG0 C500\n");
+        assert_eq!((e.line, e.column, &e.kind), (3, 1, &ParseErrorKind::LostC));
+        assert!(
+            e.to_string().contains("position C before renaming it"),
+            "{e}"
         );
+        // A known C renamed and cleared is fine.
+        assert!(read_program("G0 C5\nG92 C0\nG92.1\nG0 C500\n", false).is_ok());
     }
 
     #[test]
     fn modal_motion_and_incremental_moves() {
         let program = read_program("G0 X1 Z2 C3\nX4\nG91 Z1\nC-1\n", false).unwrap();
-        let targets: Vec<_> = program.blocks.iter().map(|b| b.target().unwrap()).collect();
+        let targets: Vec<_> = program.moves.iter().map(|b| b.target().unwrap()).collect();
         assert_eq!(targets[1].x, Some(4.0));
         assert_eq!(targets[2].z, Some(3.0));
         assert_eq!(targets[3].c, Some(2.0));
@@ -1110,11 +1154,8 @@ G92.1 G0 C0
         assert_eq!(kind_at("G92 X0"), (1, 5, G92OnLinearAxis('X')));
         // G92.1 takes no axis words: they are a move, which needs a motion mode.
         assert_eq!(kind_at("G92.1 C0"), (1, 7, NoMotionMode));
-        // After renaming an unknown C, G92.1 leaves C unknown.
-        assert_eq!(
-            kind_at("G92 C30\nG92.1\nG91 G0 C1"),
-            (3, 8, UnknownPosition(Axis::C))
-        );
+        // After renaming an unknown C, G92.1 leaves C where nobody knows.
+        assert_eq!(kind_at("G92 C30\nG92.1\nG91 G0 C1"), (2, 1, LostC));
         assert_eq!(kind_at("G0 Y1"), (1, 4, YAxis));
         assert_eq!(
             kind_at("G0 X1 Z1 C1\nG93 G1 X2"),

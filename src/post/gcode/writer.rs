@@ -1,4 +1,5 @@
-//! Writers: a [`Program`] → G-code text for one controller dialect.
+//! Writers: a [`Program`] → G-code text for one controller dialect. The program is in one
+//! continuous frame, and so is the text: C is written as it is, never renamed with G92.
 //!
 //! Both dialects get the same shape of program, chosen so that what the controller
 //! executes is what the program model says:
@@ -11,8 +12,6 @@
 //! - axis words left out when their *written text* did not change, so the position the
 //!   controller holds is exactly what was last written; a move whose words all equal
 //!   the written position produces no line (the controller would not move either).
-//!   After `G92.1` the controller's C is one the writer never wrote, so the next C word
-//!   is always written;
 //! - `G0`/`G1` on every motion line (no reliance on the modal motion code);
 //! - feed rates rounded down, so rounding never makes a move faster than planned.
 //!
@@ -24,37 +23,11 @@
 //! and last, and comments that cannot be mistaken for its active comments (`(MSG,`,
 //! `(DEBUG,`, `(PY,` …).
 
-use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use super::format::{format_number, format_number_down, format_significant_down, MAX_DECIMALS};
-use crate::program::{Axis, Block, Pose, Program};
-
-/// The controller language a program is written in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Dialect {
-    /// grblHAL (grbl family): f32 coordinates, no path blending, 256-character lines.
-    GrblHal,
-    /// LinuxCNC (rs274ngc): f64 coordinates, path blending with `G64 P… Q…`.
-    LinuxCnc,
-}
-
-impl Dialect {
-    /// How many digits of a number the controller reads; grblHAL's `read_float` keeps
-    /// the first nine significant digits and silently drops the rest. Every digit written
-    /// counts here, leading zeros too, which errs on the safe side.
-    pub fn max_number_digits(self) -> Option<usize> {
-        match self {
-            Dialect::GrblHal => Some(9),
-            Dialect::LinuxCnc => None,
-        }
-    }
-}
-
-/// The shortest line limit a writer accepts: every fixed line (preamble, spindle,
-/// G92, G92.1) fits, and a comment still carries a useful amount of text per line.
-pub const MIN_LINE_LENGTH: usize = 32;
+use crate::config::machine::{Axis, Dialect, MachineProfile, MIN_LINE_LENGTH};
+use crate::program::{Move, Pose, Program};
 
 /// Significant digits of every F word, rounded down: the written feed is below the
 /// planned one by less than 10⁻⁵ relative, so an inverse-time move lasts its planned
@@ -91,6 +64,25 @@ pub struct PostSettings {
     pub max_line_length: usize,
 }
 
+impl PostSettings {
+    /// The post settings of `machine`, with decimals the planner chose from its error
+    /// budget (see [`super::format::decimals_for`]).
+    pub fn for_machine(
+        machine: &MachineProfile,
+        linear_decimals: u32,
+        angular_decimals: u32,
+    ) -> PostSettings {
+        PostSettings {
+            dialect: machine.dialect,
+            linear_decimals,
+            angular_decimals,
+            x_diameter: machine.x_diameter(),
+            blend_tolerance_mm: machine.blend_tolerance_mm,
+            max_line_length: machine.max_line_length,
+        }
+    }
+}
+
 /// Why a program could not be written.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum PostError {
@@ -113,23 +105,23 @@ pub enum PostError {
         "grblHAL follows the polyline exactly and has no G64: blend_tolerance_mm must be absent"
     )]
     BlendingUnsupported,
-    /// A block whose values cannot be written (not finite, a zero or negative time,
+    /// A move whose values cannot be written (not finite, a zero or negative time,
     /// feed or speed).
-    #[error("block {block} (block index, not a file line): {problem}")]
-    InvalidBlock {
-        /// Index of the block in [`Program::blocks`].
-        block: usize,
+    #[error("move {index} (not a file line): {problem}")]
+    InvalidMove {
+        /// Index of the move in [`Program::moves`].
+        index: usize,
         /// What is wrong.
         problem: String,
     },
     /// A motion line longer than the controller accepts.
     #[error(
-        "block {block} (block index, not a file line): its line is {length} characters, \
+        "move {index} (not a file line): its line is {length} characters, \
          over the controller's limit of {max}: {line}"
     )]
     LineTooLong {
-        /// Index of the block in [`Program::blocks`].
-        block: usize,
+        /// Index of the move in [`Program::moves`].
+        index: usize,
         /// The line.
         line: String,
         /// Its length in characters.
@@ -139,12 +131,12 @@ pub enum PostError {
     },
     /// A number with more digits than the controller reads.
     #[error(
-        "block {block} (block index, not a file line): {word} has {digits} digits, but \
+        "move {index} (not a file line): {word} has {digits} digits, but \
          the controller reads only the first {max} digits of a number"
     )]
     TooManyDigits {
-        /// Index of the block in [`Program::blocks`].
-        block: usize,
+        /// Index of the move in [`Program::moves`].
+        index: usize,
         /// The word, e.g. `X123456.7891`.
         word: String,
         /// Its digit count.
@@ -167,8 +159,8 @@ pub fn write(program: &Program, settings: &PostSettings) -> Result<String, PostE
         lines: 0,
     };
     writer.preamble();
-    for (index, block) in program.blocks.iter().enumerate() {
-        writer.block(index, block)?;
+    for (index, action) in program.moves.iter().enumerate() {
+        writer.write_move(index, action)?;
     }
     writer.epilogue();
     Ok(writer.out)
@@ -270,13 +262,13 @@ impl Writer<'_> {
         self.out.push('\n');
     }
 
-    /// Writes the line of a block, checking it fits the controller's line buffer.
-    fn block_line(&mut self, block: usize, line: String) -> Result<(), PostError> {
+    /// Writes the line of move `index`, checking it fits the controller's line buffer.
+    fn move_line(&mut self, index: usize, line: String) -> Result<(), PostError> {
         let length = line.chars().count() + self.prefix_length();
         let max = self.settings.max_line_length;
         if length > max {
             return Err(PostError::LineTooLong {
-                block,
+                index,
                 line,
                 length,
                 max,
@@ -287,12 +279,12 @@ impl Writer<'_> {
     }
 
     /// `letter` + `number`, checked against the controller's digit limit.
-    fn word(&self, block: usize, letter: char, number: &str) -> Result<String, PostError> {
+    fn word(&self, index: usize, letter: char, number: &str) -> Result<String, PostError> {
         let word = format!("{letter}{number}");
         let digits = number.chars().filter(char::is_ascii_digit).count();
         match self.settings.dialect.max_number_digits() {
             Some(max) if digits > max => Err(PostError::TooManyDigits {
-                block,
+                index,
                 word,
                 digits,
                 max,
@@ -370,9 +362,9 @@ impl Writer<'_> {
         }
     }
 
-    /// The axis words of a move to `target`, leaving out axes the block does not move
+    /// The axis words of a move to `target`, leaving out axes the move does not move
     /// and those whose text equals what was last written; updates the written position.
-    fn axis_words(&mut self, block: usize, target: Pose) -> Result<Vec<String>, PostError> {
+    fn axis_words(&mut self, index: usize, target: Pose) -> Result<Vec<String>, PostError> {
         let mut words = Vec::new();
         for (slot, axis) in Axis::ALL.into_iter().enumerate() {
             let Some(value) = target.get(axis) else {
@@ -380,7 +372,7 @@ impl Writer<'_> {
             };
             if !value.is_finite() {
                 return Err(invalid(
-                    block,
+                    index,
                     format!("{axis} target {value} is not finite"),
                 ));
             }
@@ -391,23 +383,23 @@ impl Writer<'_> {
             };
             let text = format_number(written, decimals);
             if self.written[slot].as_deref() != Some(text.as_str()) {
-                words.push(self.word(block, axis.letter(), &text)?);
+                words.push(self.word(index, axis.letter(), &text)?);
                 self.written[slot] = Some(text);
             }
         }
         Ok(words)
     }
 
-    fn block(&mut self, index: usize, block: &Block) -> Result<(), PostError> {
-        match *block {
-            Block::Comment(ref text) => self.comment(text),
-            Block::Rapid { x, z, c } => {
+    fn write_move(&mut self, index: usize, action: &Move) -> Result<(), PostError> {
+        match *action {
+            Move::Comment(ref text) => self.comment(text),
+            Move::Rapid { x, z, c } => {
                 let words = self.axis_words(index, Pose { x, z, c })?;
                 if !words.is_empty() {
-                    self.block_line(index, format!("G0 {}", words.join(" ")))?;
+                    self.move_line(index, format!("G0 {}", words.join(" ")))?;
                 }
             }
-            Block::Feed { x, z, c, feed } => {
+            Move::Feed { x, z, c, feed } => {
                 if !(feed.is_finite() && feed > 0.0) {
                     return Err(invalid(
                         index,
@@ -419,10 +411,10 @@ impl Writer<'_> {
                 if !words.is_empty() {
                     let mode = if self.inverse_time { "G94 " } else { "" };
                     self.inverse_time = false;
-                    self.block_line(index, format!("{mode}G1 {} {f}", words.join(" ")))?;
+                    self.move_line(index, format!("{mode}G1 {} {f}", words.join(" ")))?;
                 }
             }
-            Block::Linked { x, z, c, minutes } => {
+            Move::Linked { x, z, c, minutes } => {
                 let per_minute = 1.0 / minutes;
                 if !(minutes > 0.0 && per_minute.is_finite() && per_minute > 0.0) {
                     return Err(invalid(
@@ -439,25 +431,10 @@ impl Writer<'_> {
                 if !words.is_empty() {
                     let mode = if self.inverse_time { "" } else { "G93 " };
                     self.inverse_time = true;
-                    self.block_line(index, format!("{mode}G1 {} {f}", words.join(" ")))?;
+                    self.move_line(index, format!("{mode}G1 {} {f}", words.join(" ")))?;
                 }
             }
-            Block::RebaseC { c } => {
-                if !c.is_finite() {
-                    return Err(invalid(index, format!("G92 C value {c} is not finite")));
-                }
-                let text = format_number(c, self.settings.angular_decimals);
-                let word = self.word(index, 'C', &text)?;
-                self.written[2] = Some(text);
-                self.block_line(index, format!("G92 {word}"))?;
-            }
-            Block::ClearRebase => {
-                // The controller's C becomes the unrebased position, whose text was never
-                // written: the next C word must be written whatever it reads.
-                self.written[2] = None;
-                self.block_line(index, "G92.1".to_owned())?;
-            }
-            Block::SpindleOn { rpm } => {
+            Move::SpindleOn { rpm } => {
                 if !(rpm.is_finite() && rpm > 0.0) {
                     return Err(invalid(
                         index,
@@ -466,9 +443,9 @@ impl Writer<'_> {
                 }
                 let s = self.word(index, 'S', &format_number(rpm, RPM_DECIMALS))?;
                 self.spindle_on = true;
-                self.block_line(index, format!("M3 {s}"))?;
+                self.move_line(index, format!("M3 {s}"))?;
             }
-            Block::SpindleOff => {
+            Move::SpindleOff => {
                 self.spindle_on = false;
                 self.line("M5");
             }
@@ -477,8 +454,8 @@ impl Writer<'_> {
     }
 }
 
-fn invalid(block: usize, problem: String) -> PostError {
-    PostError::InvalidBlock { block, problem }
+fn invalid(index: usize, problem: String) -> PostError {
+    PostError::InvalidMove { index, problem }
 }
 
 #[cfg(test)]
@@ -511,51 +488,50 @@ mod tests {
 
     fn sample() -> Program {
         Program {
-            blocks: vec![
-                Block::Comment("whirl test".into()),
-                Block::SpindleOn { rpm: 3000.0 },
-                Block::Rapid {
+            moves: vec![
+                Move::Comment("whirl test".into()),
+                Move::SpindleOn { rpm: 3000.0 },
+                Move::Rapid {
                     x: Some(12.0),
                     z: Some(-1.0),
                     c: Some(0.0),
                 },
-                Block::Feed {
+                Move::Feed {
                     x: Some(10.5),
                     z: None,
                     c: None,
                     feed: 200.0,
                 },
-                Block::Linked {
+                Move::Linked {
                     x: 10.5,
                     z: -0.5,
                     c: 90.0,
                     minutes: 0.01,
                 },
-                Block::Linked {
+                Move::Linked {
                     x: 10.25,
                     z: 0.0,
                     c: 180.0,
                     minutes: 0.02,
                 },
-                Block::RebaseC { c: 0.0 },
-                Block::Linked {
+                Move::Linked {
                     x: 10.25,
                     z: 0.5,
-                    c: 90.0,
+                    c: 270.0,
                     minutes: 0.01,
                 },
-                Block::Feed {
+                Move::Feed {
                     x: Some(15.0),
                     z: None,
                     c: None,
                     feed: 500.0,
                 },
-                Block::Rapid {
+                Move::Rapid {
                     x: None,
                     z: Some(10.0),
                     c: None,
                 },
-                Block::SpindleOff,
+                Move::SpindleOff,
             ],
         }
     }
@@ -589,7 +565,7 @@ mod tests {
     fn a_line_that_fits_only_without_its_number_is_refused() {
         // `G0 X1234.568 Z-1234.568 C123456.789` is 35 characters; with "N3 " in front
         // (after the preamble and the comment) it is 38, over a 37-character limit.
-        let program = one(Block::Rapid {
+        let program = one(Move::Rapid {
             x: Some(1234.5678),
             z: Some(-1234.5678),
             c: Some(123_456.789),
@@ -614,8 +590,8 @@ mod tests {
 
     #[test]
     fn grblhal_format() {
-        // Unchanged words are left out (X on the first linked move, X on the one after
-        // G92), G93/G94 appear only at mode changes, F is on every G1 (1/0.01 min = 100).
+        // Unchanged words are left out (X on the first linked move and on the third),
+        // G93/G94 appear only at mode changes, F is on every G1 (1/0.01 min = 100).
         let expected = "\
 N1 G21 G90 G94
 N2 (whirl test)
@@ -624,12 +600,11 @@ N4 G0 X12 Z-1 C0
 N5 G1 X10.5 F200
 N6 G93 G1 Z-0.5 C90 F100
 N7 G1 X10.25 Z0 C180 F50
-N8 G92 C0
-N9 G1 Z0.5 C90 F100
-N10 G94 G1 X15 F500
-N11 G0 Z10
-N12 M5
-N13 M2
+N8 G1 Z0.5 C270 F100
+N9 G94 G1 X15 F500
+N10 G0 Z10
+N11 M5
+N12 M2
 ";
         assert_eq!(write(&sample(), &grbl()).unwrap(), expected);
     }
@@ -647,8 +622,7 @@ G0 X24 Z-1 C0
 G1 X21 F200
 G93 G1 Z-0.5 C90 F100
 G1 X20.5 Z0 C180 F50
-G92 C0
-G1 Z0.5 C90 F100
+G1 Z0.5 C270 F100
 G94 G1 X30 F500
 G0 Z10
 M5
@@ -658,109 +632,28 @@ M2
         assert_eq!(write(&sample(), &linuxcnc()).unwrap(), expected);
     }
 
-    /// Two turns, a rebase, a turn, the retract and the clear, as `path::build` ends a
-    /// rebased program. The linked move after G92 is written in the rebased frame.
-    fn rebased_and_cleared() -> Program {
-        Program {
-            blocks: vec![
-                Block::Rapid {
+    #[test]
+    fn c_is_written_as_it_is_however_many_turns() {
+        // Three turns and a quarter: C1170, no G92 anywhere.
+        let program = Program {
+            moves: vec![
+                Move::Rapid {
                     x: Some(12.0),
                     z: Some(0.0),
                     c: Some(0.0),
                 },
-                Block::SpindleOn { rpm: 3000.0 },
-                Block::Feed {
-                    x: Some(10.0),
-                    z: None,
-                    c: None,
-                    feed: 100.0,
+                Move::Linked {
+                    x: 12.0,
+                    z: 6.5,
+                    c: 1170.0,
+                    minutes: 0.1,
                 },
-                Block::Linked {
-                    x: 10.0,
-                    z: 4.0,
-                    c: 720.0,
-                    minutes: 0.02,
-                },
-                Block::RebaseC { c: 0.0 },
-                Block::Linked {
-                    x: 10.0,
-                    z: 6.0,
-                    c: 360.0,
-                    minutes: 0.01,
-                },
-                Block::Rapid {
-                    x: Some(12.0),
-                    z: None,
-                    c: None,
-                },
-                Block::SpindleOff,
-                Block::ClearRebase,
             ],
-        }
-    }
-
-    #[test]
-    fn rebase_and_clear_snapshots() {
-        let grbl_text = "\
-G21 G90 G94
-G0 X12 Z0 C0
-M3 S3000
-G1 X10 F100
-G93 G1 Z4 C720 F50
-G92 C0
-G1 Z6 C360 F100
-G0 X12
-M5
-G92.1
-G94
-M2
-";
-        assert_eq!(
-            unnumbered(&write(&rebased_and_cleared(), &grbl()).unwrap()),
-            grbl_text
-        );
-        let linuxcnc_text = "\
-%
-G21 G90 G94 G7
-G64 P0.001 Q0
-G0 X24 Z0 C0
-M3 S3000
-G1 X20 F100
-G93 G1 Z4 C720 F50
-G92 C0
-G1 Z6 C360 F100
-G0 X24
-M5
-G92.1
-G94
-M2
-%
-";
-        assert_eq!(
-            write(&rebased_and_cleared(), &linuxcnc()).unwrap(),
-            linuxcnc_text
-        );
-    }
-
-    #[test]
-    fn clear_rebase_round_trips_and_c_is_written_after_it() {
-        // After G92.1 the controller holds the unrebased C (1080 here), so a move to C0 in
-        // the unrebased frame must write C0 although C0 was the last C text written.
-        let mut program = rebased_and_cleared();
-        program.blocks.pop();
-        program.blocks.extend([
-            Block::ClearRebase,
-            Block::Rapid {
-                x: None,
-                z: None,
-                c: Some(0.0),
-            },
-        ]);
+        };
         for settings in [grbl(), linuxcnc()] {
             let text = write(&program, &settings).unwrap();
-            assert!(unnumbered(&text).contains("\nG92.1\nG0 C0\n"), "{text}");
-            let read = read_program(&text, settings.x_diameter).unwrap();
-            assert_eq!(read, program);
+            assert!(text.contains(" C1170 "), "{text}");
+            assert!(!text.contains("G92"), "{text}");
         }
     }
 
@@ -778,9 +671,9 @@ M2
     #[test]
     fn spindle_left_on_is_stopped_and_inverse_time_is_left() {
         let program = Program {
-            blocks: vec![
-                Block::SpindleOn { rpm: 2500.5 },
-                Block::Linked {
+            moves: vec![
+                Move::SpindleOn { rpm: 2500.5 },
+                Move::Linked {
                     x: 1.0,
                     z: 2.0,
                     c: 3.0,
@@ -877,81 +770,78 @@ M2
         ));
     }
 
-    fn one(block: Block) -> Program {
+    fn one(block: Move) -> Program {
         Program {
-            blocks: vec![Block::Comment("first".into()), block],
+            moves: vec![Move::Comment("first".into()), block],
         }
     }
 
     #[test]
-    fn unwritable_blocks_are_errors_naming_the_block() {
+    fn unwritable_moves_are_errors_naming_the_move() {
         let bad = [
-            Block::Linked {
+            Move::Linked {
                 x: 1.0,
                 z: 1.0,
                 c: 1.0,
                 minutes: 0.0,
             },
-            Block::Linked {
+            Move::Linked {
                 x: 1.0,
                 z: 1.0,
                 c: 1.0,
                 minutes: -1.0,
             },
             // 1/minutes overflows to infinity.
-            Block::Linked {
+            Move::Linked {
                 x: 1.0,
                 z: 1.0,
                 c: 1.0,
                 minutes: 1e-310,
             },
-            Block::Linked {
+            Move::Linked {
                 x: 1.0,
                 z: 1.0,
                 c: 1.0,
                 minutes: f64::INFINITY,
             },
-            Block::Linked {
+            Move::Linked {
                 x: f64::NAN,
                 z: 1.0,
                 c: 1.0,
                 minutes: 1.0,
             },
-            Block::Feed {
+            Move::Feed {
                 x: Some(1.0),
                 z: None,
                 c: None,
                 feed: 0.0,
             },
-            Block::Feed {
+            Move::Feed {
                 x: Some(1.0),
                 z: None,
                 c: None,
                 feed: f64::NAN,
             },
-            Block::Rapid {
+            Move::Rapid {
                 x: None,
                 z: Some(f64::INFINITY),
                 c: None,
             },
-            Block::RebaseC { c: f64::NAN },
-            Block::SpindleOn { rpm: 0.0 },
-            Block::SpindleOn { rpm: -5.0 },
+            Move::SpindleOn { rpm: 0.0 },
+            Move::SpindleOn { rpm: -5.0 },
         ];
-        for block in bad {
-            let error = write(&one(block.clone()), &grbl()).unwrap_err();
+        for case in bad {
+            let error = write(&one(case.clone()), &grbl()).unwrap_err();
             assert!(
-                matches!(error, PostError::InvalidBlock { block: 1, .. }),
-                "{block:?}: {error}"
+                matches!(error, PostError::InvalidMove { index: 1, .. }),
+                "{case:?}: {error}"
             );
-            assert!(error
-                .to_string()
-                .starts_with("block 1 (block index, not a file line): "));
+            assert!(error.to_string().starts_with("move 1 (not a file line): "));
         }
     }
 
     #[test]
-    fn a_motion_line_that_cannot_fit_is_an_error_naming_the_block() {
+    fn a_motion_line_that_cannot_fit_is_an_error_naming_the_move() {
         let settings = PostSettings {
             dialect: Dialect::LinuxCnc,
             max_line_length: 32,
@@ -959,7 +849,7 @@ M2
             angular_decimals: 6,
             ..linuxcnc()
         };
-        let block = Block::Linked {
+        let block = Move::Linked {
             x: 123.456789,
             z: -234.567891,
             c: 3456.789123,
@@ -970,7 +860,7 @@ M2
             matches!(
                 error,
                 PostError::LineTooLong {
-                    block: 1,
+                    index: 1,
                     max: 32,
                     ..
                 }
@@ -985,7 +875,7 @@ M2
             linear_decimals: 6,
             ..grbl()
         };
-        let block = Block::Rapid {
+        let block = Move::Rapid {
             x: None,
             z: Some(-1234.567891),
             c: None,
@@ -994,7 +884,7 @@ M2
         assert_eq!(
             error,
             PostError::TooManyDigits {
-                block: 1,
+                index: 1,
                 word: "Z-1234.567891".into(),
                 digits: 10,
                 max: 9,
@@ -1010,7 +900,7 @@ M2
 
     #[test]
     fn comments_are_sanitized_for_grbl() {
-        let program = one(Block::Comment("a (nested) ?!~ ünï\tcode\u{18}".into()));
+        let program = one(Move::Comment("a (nested) ?!~ ünï\tcode\u{18}".into()));
         let text = unnumbered(&write(&program, &grbl()).unwrap());
         let line = text.lines().nth(2).unwrap();
         assert_eq!(line, "(a [nested] ___ _n_ code )");
@@ -1019,12 +909,12 @@ M2
     #[test]
     fn linuxcnc_active_comments_are_disarmed() {
         for active in ["MSG, hello", " debug,#<x>", "PY,print(1)", "print ,x"] {
-            let text = write(&one(Block::Comment(active.into())), &linuxcnc()).unwrap();
+            let text = write(&one(Move::Comment(active.into())), &linuxcnc()).unwrap();
             let line = text.lines().nth(4).unwrap();
             assert!(line.starts_with("(note: "), "{line}");
         }
         // Question marks are fine for LinuxCNC, and plain comments stay as they are.
-        let text = write(&one(Block::Comment("pass 2, finish?".into())), &linuxcnc()).unwrap();
+        let text = write(&one(Move::Comment("pass 2, finish?".into())), &linuxcnc()).unwrap();
         assert_eq!(text.lines().nth(4), Some("(pass 2, finish?)"));
     }
 
@@ -1033,7 +923,7 @@ M2
         let long: String = (0..700)
             .map(|i| char::from(b'a' + (i % 26) as u8))
             .collect();
-        let numbered = write(&one(Block::Comment(long.clone())), &grbl()).unwrap();
+        let numbered = write(&one(Move::Comment(long.clone())), &grbl()).unwrap();
         assert!(numbered.lines().all(|l| l.len() <= 256));
         let text = unnumbered(&numbered);
         let comments: Vec<&str> = text
@@ -1081,20 +971,20 @@ M2
 
     #[test]
     fn every_linked_line_is_in_g93_and_carries_f() {
-        let mut blocks = vec![Block::Rapid {
+        let mut moves = vec![Move::Rapid {
             x: Some(5.0),
             z: Some(0.0),
             c: Some(0.0),
         }];
         for i in 1..=20 {
-            blocks.push(Block::Linked {
+            moves.push(Move::Linked {
                 x: 5.0 + (i % 3) as f64 * 0.01,
                 z: i as f64 * 0.1,
                 c: i as f64 * 18.0,
                 minutes: 0.001 * i as f64,
             });
             if i % 7 == 0 {
-                blocks.push(Block::Feed {
+                moves.push(Move::Feed {
                     x: Some(8.0),
                     z: None,
                     c: None,
@@ -1102,7 +992,7 @@ M2
                 });
             }
         }
-        let program = Program { blocks };
+        let program = Program { moves };
         for settings in [grbl(), linuxcnc()] {
             let facts = modal_facts(&write(&program, &settings).unwrap());
             let linked: Vec<_> = facts.g1_lines.iter().filter(|(inv, _)| *inv).collect();
@@ -1115,13 +1005,13 @@ M2
     #[test]
     fn x_doubles_in_diameter_mode() {
         let program = Program {
-            blocks: vec![
-                Block::Rapid {
+            moves: vec![
+                Move::Rapid {
                     x: Some(7.25),
                     z: Some(0.0),
                     c: None,
                 },
-                Block::Feed {
+                Move::Feed {
                     x: Some(3.125),
                     z: None,
                     c: None,
@@ -1147,7 +1037,7 @@ M2
     fn inverse_time_feed_gives_the_move_time_to_1e4() {
         for i in 1..3000 {
             let minutes = 1e-4 * 1.0037f64.powi(i);
-            let program = one(Block::Linked {
+            let program = one(Move::Linked {
                 x: 1.0,
                 z: 1.0,
                 c: 1.0,
@@ -1169,24 +1059,22 @@ M2
         }
     }
 
-    fn arb_block() -> impl Strategy<Value = Block> {
+    fn arb_move() -> impl Strategy<Value = Move> {
         let coord = || -300.0..300.0f64;
         let maybe = || proptest::option::of(-300.0..300.0f64);
         prop_oneof![
-            "[ -~]{0,400}".prop_map(Block::Comment),
-            (maybe(), maybe(), maybe()).prop_map(|(x, z, c)| Block::Rapid { x, z, c }),
-            (maybe(), maybe(), maybe(), 1.0..5000.0f64).prop_map(|(x, z, c, feed)| Block::Feed {
+            "[ -~]{0,400}".prop_map(Move::Comment),
+            (maybe(), maybe(), maybe()).prop_map(|(x, z, c)| Move::Rapid { x, z, c }),
+            (maybe(), maybe(), maybe(), 1.0..5000.0f64).prop_map(|(x, z, c, feed)| Move::Feed {
                 x,
                 z,
                 c,
                 feed
             }),
             (coord(), coord(), -5000.0..5000.0f64, 1e-4..10.0f64)
-                .prop_map(|(x, z, c, minutes)| Block::Linked { x, z, c, minutes }),
-            (-720.0..720.0f64).prop_map(|c| Block::RebaseC { c }),
-            Just(Block::ClearRebase),
-            (100.0..9000.0f64).prop_map(|rpm| Block::SpindleOn { rpm }),
-            Just(Block::SpindleOff),
+                .prop_map(|(x, z, c, minutes)| Move::Linked { x, z, c, minutes }),
+            (100.0..9000.0f64).prop_map(|rpm| Move::SpindleOn { rpm }),
+            Just(Move::SpindleOff),
         ]
     }
 
@@ -1219,10 +1107,10 @@ M2
     proptest! {
         #[test]
         fn lines_never_exceed_the_limit(
-            blocks in proptest::collection::vec(arb_block(), 0..40),
+            moves in proptest::collection::vec(arb_move(), 0..40),
             settings in arb_settings(),
         ) {
-            let program = Program { blocks };
+            let program = Program { moves };
             // Either the text fits, or the writer refused a line that could not fit.
             match write(&program, &settings) {
                 Ok(text) => {
@@ -1241,17 +1129,17 @@ M2
 
         #[test]
         fn values_round_trip_through_the_parser(
-            blocks in proptest::collection::vec(arb_block(), 0..40),
+            moves in proptest::collection::vec(arb_move(), 0..40),
             settings in arb_settings(),
         ) {
             let settings = PostSettings { max_line_length: 256, ..settings };
-            let program = Program { blocks };
+            let program = Program { moves };
             let text = write(&program, &settings).unwrap();
             let read = read_program(&text, settings.x_diameter).unwrap();
 
-            // What the controller should hold after each block: every axis rounded to
+            // What the controller should hold after each move: every axis rounded to
             // its written decimals (X through the diameter when the controller's X is
-            // one), in the controller's own C frame.
+            // one).
             let round = |axis: Axis, v: f64| -> f64 {
                 match axis {
                     Axis::X if settings.x_diameter => {
@@ -1266,40 +1154,12 @@ M2
                 let unit = 0.5 * 10f64.powi(-(d as i32));
                 if axis == Axis::X && settings.x_diameter { unit / 2.0 } else { unit }
             };
-            // G92 and G92.1 as the controller applies them: `offset` is the unrebased C
-            // minus the controller's C (none at the start; unknown after renaming an
-            // unknown C), and G92.1 makes the controller's C the unrebased one.
-            let rename = |position: &mut [Option<f64>; 3], offset: &mut Option<f64>, c: f64| {
-                *offset = match (position[2], *offset) {
-                    (Some(p), Some(o)) => Some(p + o - c),
-                    _ => None,
-                };
-                position[2] = Some(c);
-            };
-            let clear = |position: &mut [Option<f64>; 3], offset: &mut Option<f64>| {
-                position[2] = match (position[2], *offset) {
-                    (Some(p), Some(o)) => Some(p + o),
-                    _ => None,
-                };
-                *offset = Some(0.0);
-            };
             let mut expected: Vec<[Option<f64>; 3]> = Vec::new();
             let mut expected_times: Vec<f64> = Vec::new();
             let mut rounded = [None; 3];
-            let mut offset = Some(0.0);
-            for block in &program.blocks {
-                let targets: [Option<f64>; 3] = match (block.target(), block) {
-                    (Some(t), _) => [t.x, t.z, t.c],
-                    (None, Block::RebaseC { c }) => {
-                        rename(&mut rounded, &mut offset, round(Axis::C, *c));
-                        [None; 3]
-                    }
-                    (None, Block::ClearRebase) => {
-                        clear(&mut rounded, &mut offset);
-                        [None; 3]
-                    }
-                    _ => continue,
-                };
+            for action in &program.moves {
+                let Some(t) = action.target() else { continue };
+                let targets = [t.x, t.z, t.c];
                 for (slot, axis) in Axis::ALL.into_iter().enumerate() {
                     if let Some(v) = targets[slot] {
                         rounded[slot] = Some(round(axis, v));
@@ -1308,7 +1168,7 @@ M2
                 }
                 if expected.last().unwrap_or(&[None; 3]) != &rounded {
                     expected.push(rounded);
-                    if let Block::Linked { minutes, .. } = block {
+                    if let Move::Linked { minutes, .. } = action {
                         expected_times.push(*minutes);
                     }
                 }
@@ -1316,20 +1176,9 @@ M2
             let mut actual: Vec<[Option<f64>; 3]> = Vec::new();
             let mut actual_times: Vec<f64> = Vec::new();
             let mut position = [None; 3];
-            let mut offset = Some(0.0);
-            for block in &read.blocks {
-                let targets: [Option<f64>; 3] = match (block.target(), block) {
-                    (Some(t), _) => [t.x, t.z, t.c],
-                    (None, Block::RebaseC { c }) => {
-                        rename(&mut position, &mut offset, *c);
-                        [None; 3]
-                    }
-                    (None, Block::ClearRebase) => {
-                        clear(&mut position, &mut offset);
-                        [None; 3]
-                    }
-                    _ => continue,
-                };
+            for action in &read.moves {
+                let Some(t) = action.target() else { continue };
+                let targets = [t.x, t.z, t.c];
                 for slot in 0..3 {
                     if targets[slot].is_some() {
                         position[slot] = targets[slot];
@@ -1337,7 +1186,7 @@ M2
                 }
                 if actual.last().unwrap_or(&[None; 3]) != &position {
                     actual.push(position);
-                    if let Block::Linked { minutes, .. } = block {
+                    if let Move::Linked { minutes, .. } = action {
                         actual_times.push(*minutes);
                     }
                 }
@@ -1348,24 +1197,21 @@ M2
                 prop_assert!(*read_minutes >= *planned * (1.0 - 1e-12));
                 prop_assert!((read_minutes - planned) / planned < 1e-4);
             }
-            // Every G92.1 survives.
-            let clears = |p: &Program| p.blocks.iter().filter(|b| **b == Block::ClearRebase).count();
-            prop_assert_eq!(clears(&read), clears(&program));
             // Comments and spindle blocks survive in order.
-            let others = |p: &Program| -> Vec<Block> {
-                p.blocks.iter().filter(|b| matches!(b, Block::SpindleOn { .. } | Block::SpindleOff)).cloned().collect()
+            let others = |p: &Program| -> Vec<Move> {
+                p.moves.iter().filter(|b| matches!(b, Move::SpindleOn { .. } | Move::SpindleOff)).cloned().collect()
             };
             let spindle_read = others(&read);
             let mut spindle_planned = others(&program);
             // The writer stops a ring left running at the end.
-            if let Some(Block::SpindleOn { .. }) = spindle_planned.last() {
-                spindle_planned.push(Block::SpindleOff);
+            if let Some(Move::SpindleOn { .. }) = spindle_planned.last() {
+                spindle_planned.push(Move::SpindleOff);
             }
             prop_assert_eq!(spindle_read.len(), spindle_planned.len());
             for (r, p) in spindle_read.iter().zip(&spindle_planned) {
                 match (r, p) {
-                    (Block::SpindleOn { rpm: a }, Block::SpindleOn { rpm: b }) => prop_assert!((a - b).abs() <= 0.05 + 1e-9),
-                    (Block::SpindleOff, Block::SpindleOff) => {}
+                    (Move::SpindleOn { rpm: a }, Move::SpindleOn { rpm: b }) => prop_assert!((a - b).abs() <= 0.05 + 1e-9),
+                    (Move::SpindleOff, Move::SpindleOff) => {}
                     _ => prop_assert!(false, "{r:?} vs {p:?}"),
                 }
             }

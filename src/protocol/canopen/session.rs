@@ -76,8 +76,9 @@ use super::cia402::{
     Target, ENABLE_IP_MODE,
 };
 use super::frame::{CanFrame, CanId};
+use crate::config::connection::{DriveMode, DriveSettings, SettingError};
+use crate::config::machine::Axis;
 use crate::post::setpoints::{to_wire, unwrap_near, SetPoints};
-use crate::program::Axis;
 
 /// How the session runs the bus.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -191,6 +192,40 @@ impl Default for SessionConfig {
             settle_timeout: Duration::from_secs(1),
             disable_timeout: Duration::from_secs(1),
             operation: Operation::CyclicSynchronousPosition,
+        }
+    }
+}
+
+impl SessionConfig {
+    /// The session for a profile's drives: their nodes, heartbeat, following error window
+    /// and mode, every other setting at [`SessionConfig::default`]. An error, naming the
+    /// key, for settings [`DriveSettings::validate`] refuses.
+    pub fn for_drives(drives: &DriveSettings) -> Result<SessionConfig, SettingError> {
+        drives.validate()?;
+        let mut nodes = SessionConfig::default().nodes;
+        for (node, &id) in nodes.iter_mut().zip(&drives.nodes) {
+            *node = NodeId::new(id).map_err(|e| SettingError {
+                key: "connection.drives.nodes".into(),
+                problem: e.to_string(),
+            })?;
+        }
+        Ok(SessionConfig {
+            nodes,
+            heartbeat_ms: drives.heartbeat_ms,
+            heartbeat_timeout: drives.heartbeat_timeout(),
+            following_error_window: drives.following_error_window,
+            operation: drives.mode.into(),
+            ..SessionConfig::default()
+        })
+    }
+}
+
+impl From<DriveMode> for Operation {
+    /// The mode a profile's `connection.drives.mode` names.
+    fn from(mode: DriveMode) -> Operation {
+        match mode {
+            DriveMode::Csp => Operation::CyclicSynchronousPosition,
+            DriveMode::Ip => Operation::InterpolatedPosition,
         }
     }
 }
@@ -1162,7 +1197,7 @@ impl Session {
         while self.next_mark < marks.len() && marks[self.next_mark].cycle <= self.sent {
             let mark = marks[self.next_mark];
             self.events.push(Event::Spindle {
-                block: mark.block,
+                block: mark.index,
                 rpm: mark.spindle,
             });
             self.next_mark += 1;
@@ -1362,7 +1397,7 @@ fn configuration(node: NodeId, config: &SessionConfig, cycle: (u8, i8)) -> VecDe
 mod tests {
     use super::*;
     use crate::post::setpoints::{sample, SampleConfig};
-    use crate::program::{Block, Pose, Program};
+    use crate::program::{Move, Pose, Program};
     use whirl_sim::canopen::{
         Drive as SimDrive, DriveConfig, DriveEvent as SimEvent, Frame, PowerState as SimPower,
     };
@@ -1386,26 +1421,26 @@ mod tests {
     fn setpoints(start: Pose) -> SetPoints {
         let [x, z, c] = Axis::ALL.map(|a| start.get(a).unwrap());
         let program = Program {
-            blocks: vec![
-                Block::SpindleOn { rpm: 1000.0 },
-                Block::Linked {
+            moves: vec![
+                Move::SpindleOn { rpm: 1000.0 },
+                Move::Linked {
                     x: x + 1.0,
                     z: z + 0.5,
                     c: c + 60.0,
                     minutes: 0.001,
                 },
-                Block::Linked {
+                Move::Linked {
                     x: x + 2.0,
                     z: z + 1.0,
                     c: c + 120.0,
                     minutes: 0.001,
                 },
-                Block::Rapid {
+                Move::Rapid {
                     x: Some(x),
                     z: None,
                     c: None,
                 },
-                Block::SpindleOff,
+                Move::SpindleOff,
             ],
         };
         let config = SampleConfig {
@@ -1413,6 +1448,7 @@ mod tests {
             counts_per_unit: SCALE,
             max_rate: [3000.0, 3000.0, 72_000.0],
             spin_up: Some(10 * MS),
+            dialect: crate::config::machine::Dialect::LinuxCnc,
         };
         sample(&program, start, &config).unwrap()
     }
@@ -1618,6 +1654,63 @@ mod tests {
                     _ => None,
                 })
                 .expect("enabled")
+        }
+    }
+
+    /// A profile's `[connection.drives]`: counts for the sampler, the rest defaults.
+    fn drives(more: &str) -> DriveSettings {
+        toml::from_str(&format!(
+            "counts_per_mm = [10000.0, 10000.0]\ncounts_per_degree = 2912.7\n{more}"
+        ))
+        .unwrap()
+    }
+
+    #[test]
+    fn a_profiles_drives_make_the_session() {
+        // The session's own defaults are a profile's: nodes 1-3, a 50 ms heartbeat
+        // supervised at 150 ms, a 10 000-count window, cyclic synchronous position.
+        assert_eq!(
+            SessionConfig::for_drives(&drives("")),
+            Ok(SessionConfig::default())
+        );
+        let config = SessionConfig::for_drives(&drives(
+            "nodes = [10, 20, 30]\nheartbeat_ms = 20\nheartbeat_timeout_ms = 70\n\
+             following_error_window = 2500",
+        ))
+        .unwrap();
+        assert_eq!(config.nodes.map(NodeId::get), [10, 20, 30]);
+        assert_eq!(config.heartbeat_ms, 20);
+        assert_eq!(config.heartbeat_timeout, Duration::from_millis(70));
+        assert_eq!(config.following_error_window, 2500);
+        assert_eq!(
+            SessionConfig {
+                nodes: SessionConfig::default().nodes,
+                heartbeat_ms: 50,
+                heartbeat_timeout: Duration::from_millis(150),
+                following_error_window: 10_000,
+                ..config
+            },
+            SessionConfig::default()
+        );
+        // Interpolated position, everything else alike.
+        assert_eq!(
+            SessionConfig::for_drives(&drives("mode = \"ip\"")),
+            Ok(SessionConfig {
+                operation: Operation::InterpolatedPosition,
+                ..SessionConfig::default()
+            })
+        );
+        // Settings the profile refuses make no session, naming the key.
+        for (more, key) in [
+            ("nodes = [1, 0, 3]", "connection.drives.nodes"),
+            ("nodes = [4, 4, 5]", "connection.drives.nodes"),
+            ("heartbeat_ms = 0", "connection.drives.heartbeat_ms"),
+            ("cycle_us = 0", "connection.drives.cycle_us"),
+        ] {
+            assert_eq!(
+                SessionConfig::for_drives(&drives(more)).unwrap_err().key,
+                key
+            );
         }
     }
 

@@ -403,6 +403,14 @@ impl fmt::Display for Command {
 mod tests {
     use super::*;
 
+    #[test]
+    fn slcans_rates_are_the_ones_a_profile_takes() {
+        assert_eq!(
+            Bitrate::ALL.map(Bitrate::bits_per_second),
+            crate::config::connection::CAN_BITRATES
+        );
+    }
+
     fn std_frame(id: u16, data: &[u8]) -> CanFrame {
         CanFrame::standard(id, data).unwrap()
     }

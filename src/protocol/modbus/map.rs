@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use thiserror::Error;
 
-use crate::program::{Block, Program};
+use crate::program::{Move, Program};
 
 /// The controller's Modbus unit id.
 pub const UNIT_ID: u8 = 1;
@@ -135,8 +135,8 @@ pub const ANGULAR_UNITS_PER_DEG: f64 = 1e4;
 pub enum MapError {
     /// A program block the map cannot carry.
     #[error("block {index} ({block}): {reason}")]
-    Block {
-        /// Its index in [`Program::blocks`].
+    Move {
+        /// Its index in [`Program::moves`].
         index: usize,
         /// The block, briefly.
         block: String,
@@ -404,9 +404,9 @@ pub fn next_sequence(sequence: u32) -> u32 {
 /// positions and the map has no work offsets; a value that is not finite or does not fit
 /// its field; a linked move or feed that rounds to zero.
 pub fn segments(program: &Program) -> Result<Vec<Segment>, MapError> {
-    let mut out = Vec::with_capacity(program.blocks.len() + 1);
-    for (index, block) in program.blocks.iter().enumerate() {
-        let refuse = |what: &str, reason: String| MapError::Block {
+    let mut out = Vec::with_capacity(program.moves.len() + 1);
+    for (index, block) in program.moves.iter().enumerate() {
+        let refuse = |what: &str, reason: String| MapError::Move {
             index,
             block: what.to_owned(),
             reason,
@@ -428,13 +428,13 @@ pub fn segments(program: &Program) -> Result<Vec<Segment>, MapError> {
             })
         };
         let segment = match *block {
-            Block::Comment(_) => continue,
-            Block::Rapid { x, z, c } => Segment::Rapid {
+            Move::Comment(_) => continue,
+            Move::Rapid { x, z, c } => Segment::Rapid {
                 x: x.map(|v| linear("G0", v)).transpose()?,
                 z: z.map(|v| linear("G0", v)).transpose()?,
                 c: c.map(|v| angular("G0", v)).transpose()?,
             },
-            Block::Feed { x, z, c, feed } => Segment::Feed {
+            Move::Feed { x, z, c, feed } => Segment::Feed {
                 x: x.map(|v| linear("G1", v)).transpose()?,
                 z: z.map(|v| linear("G1", v)).transpose()?,
                 c: c.map(|v| angular("G1", v)).transpose()?,
@@ -445,7 +445,7 @@ pub fn segments(program: &Program) -> Result<Vec<Segment>, MapError> {
                     )
                 })?,
             },
-            Block::Linked { x, z, c, minutes } => Segment::Linked {
+            Move::Linked { x, z, c, minutes } => Segment::Linked {
                 x: linear("G93 G1", x)?,
                 z: linear("G93 G1", z)?,
                 c: angular("G93 G1", c)?,
@@ -459,22 +459,7 @@ pub fn segments(program: &Program) -> Result<Vec<Segment>, MapError> {
                     )
                 })?,
             },
-            Block::RebaseC { c } => {
-                return Err(refuse(
-                    &format!("G92 C{c}"),
-                    "renames C, and the map carries machine positions only (no work \
-                     offsets); plan without C rebasing"
-                        .into(),
-                ))
-            }
-            Block::ClearRebase => {
-                return Err(refuse(
-                    "G92.1",
-                    "clears work offsets, and the map has none: slots carry machine positions"
-                        .into(),
-                ))
-            }
-            Block::SpindleOn { rpm } => Segment::SpindleOn {
+            Move::SpindleOn { rpm } => Segment::SpindleOn {
                 rpm: thousandths(rpm).ok_or_else(|| {
                     refuse(
                         "M3",
@@ -482,7 +467,7 @@ pub fn segments(program: &Program) -> Result<Vec<Segment>, MapError> {
                     )
                 })?,
             },
-            Block::SpindleOff => Segment::SpindleOff,
+            Move::SpindleOff => Segment::SpindleOff,
         };
         out.push(segment);
     }
@@ -880,7 +865,7 @@ mod tests {
         // 7 000 001 234 = 0x0000_0001_A13B_8CD2... worked out: 7 000 001 234 − 2³² =
         // 2 705 033 938 = 0xA13B_86D2, so the words are 0x0000 0x0001 0xA13B 0x8AD2.
         let program = Program {
-            blocks: vec![Block::Linked {
+            moves: vec![Move::Linked {
                 x: 12.5,
                 z: -3.25,
                 c: 700_000.123_4,
@@ -970,27 +955,27 @@ mod tests {
     #[test]
     fn a_program_becomes_segments_in_order() {
         let program = Program {
-            blocks: vec![
-                Block::Comment("groove".into()),
-                Block::Rapid {
+            moves: vec![
+                Move::Comment("groove".into()),
+                Move::Rapid {
                     x: Some(30.0),
                     z: None,
                     c: Some(0.0),
                 },
-                Block::SpindleOn { rpm: 2500.5 },
-                Block::Feed {
+                Move::SpindleOn { rpm: 2500.5 },
+                Move::Feed {
                     x: Some(24.0001),
                     z: None,
                     c: None,
                     feed: 100.0,
                 },
-                Block::Linked {
+                Move::Linked {
                     x: 24.0,
                     z: 0.5,
                     c: 360.0,
                     minutes: 0.5 / 60.0,
                 },
-                Block::SpindleOff,
+                Move::SpindleOff,
             ],
         };
         assert_eq!(
@@ -1022,18 +1007,16 @@ mod tests {
 
     #[test]
     fn blocks_the_map_cannot_carry_are_named() {
-        let refused = |block: Block| {
+        let refused = |block: Move| {
             let program = Program {
-                blocks: vec![Block::Comment("x".into()), block],
+                moves: vec![Move::Comment("x".into()), block],
             };
             match segments(&program) {
-                Err(MapError::Block { index, block, .. }) => (index, block),
+                Err(MapError::Move { index, block, .. }) => (index, block),
                 other => panic!("expected a refusal, got {other:?}"),
             }
         };
-        assert_eq!(refused(Block::RebaseC { c: 30.0 }), (1, "G92 C30".into()));
-        assert_eq!(refused(Block::ClearRebase), (1, "G92.1".into()));
-        let linked = |x: f64, c: f64, minutes: f64| Block::Linked {
+        let linked = |x: f64, c: f64, minutes: f64| Move::Linked {
             x,
             z: 0.0,
             c,
@@ -1047,19 +1030,19 @@ mod tests {
         // Half a µs rounds to zero; 72 min is beyond u32 µs (71.58 min).
         assert_eq!(refused(linked(0.0, 0.0, 0.4e-6 / 60.0)).0, 1);
         assert_eq!(refused(linked(0.0, 0.0, 72.0)).0, 1);
-        let rapid = Block::Rapid {
+        let rapid = Move::Rapid {
             x: None,
             z: Some(-1e9),
             c: None,
         };
         assert_eq!(refused(rapid).1, "G0");
-        let rapid_c = Block::Rapid {
+        let rapid_c = Move::Rapid {
             x: None,
             z: None,
             c: Some(f64::NAN),
         };
         assert_eq!(refused(rapid_c).1, "G0");
-        let feed = |x: f64, feed: f64| Block::Feed {
+        let feed = |x: f64, feed: f64| Move::Feed {
             x: Some(x),
             z: None,
             c: None,
@@ -1068,20 +1051,20 @@ mod tests {
         assert_eq!(refused(feed(1.0, 0.0)).1, "G1");
         assert_eq!(refused(feed(1.0, 5e6)).1, "G1");
         assert_eq!(refused(feed(f64::NAN, 1.0)).1, "G1");
-        let feed_c = Block::Feed {
+        let feed_c = Move::Feed {
             x: None,
             z: None,
             c: Some(1e300),
             feed: 1.0,
         };
         assert_eq!(refused(feed_c).1, "G1");
-        assert_eq!(refused(Block::SpindleOn { rpm: -1.0 }).1, "M3");
+        assert_eq!(refused(Move::SpindleOn { rpm: -1.0 }).1, "M3");
         // The message names the block.
         let err = segments(&Program {
-            blocks: vec![Block::ClearRebase],
+            moves: vec![Move::SpindleOn { rpm: -1.0 }],
         })
         .unwrap_err();
-        assert!(err.to_string().starts_with("block 0 (G92.1): "), "{err}");
+        assert!(err.to_string().starts_with("block 0 (M3): "), "{err}");
     }
 
     #[test]

@@ -1267,9 +1267,9 @@ mod tests {
     #[test]
     fn a_program_streams_from_its_blocks() {
         // segments() and the writer together: the program's blocks, then M2.
-        use crate::program::{Block, Program};
+        use crate::program::{Move, Program};
         let program = Program {
-            blocks: vec![Block::SpindleOn { rpm: 1000.0 }, Block::SpindleOff],
+            moves: vec![Move::SpindleOn { rpm: 1000.0 }, Move::SpindleOff],
         };
         let mut w = writer(map::segments(&program).unwrap());
         let mut fake = Fake::new(8);
