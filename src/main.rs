@@ -774,7 +774,7 @@ fn stream_modbus(
     use whirl::transport::modbus::{stream_modbus, ModbusLink, ModbusOptions};
     whirl::transport::check_program(lines, machine)?;
     let program = whirl::post::gcode::parse::read_program(text, machine.x_diameter())?;
-    let segments = whirl::protocol::modbus::map::segments(&program)?;
+    let segments = whirl::post::modbus::segments(&program)?;
     let link = match transport {
         Transport::ModbusTcp => ModbusLink::Tcp(
             port.parse()

@@ -448,8 +448,8 @@ pub async fn dry_run_modbus(
     use whirl_sim::modbus::{Bank, BankOptions};
 
     crate::program::limits::check_limits(program, machine)?;
-    let segments = crate::protocol::modbus::map::segments(program)
-        .map_err(|e| DryRunError::Modbus(e.to_string()))?;
+    let segments =
+        crate::post::modbus::segments(program).map_err(|e| DryRunError::Modbus(e.to_string()))?;
     let total = segments.len();
     let (controller, points) = guarded_controller(job, machine, ControllerOptions::default())?;
     let bank = Bank::new(

@@ -13,7 +13,8 @@
 //! writes keep their meaning in the controller's time.
 
 use crate::log::{self, ExecLog, LogError};
-use crate::protocol::modbus::map::{Segment, UNIT_ID};
+use crate::post::modbus::Segment;
+use crate::protocol::modbus::map::UNIT_ID;
 use crate::protocol::modbus::{
     Exception, Request, Response, RingWriter, WriterError, WriterEvent, WriterOptions,
 };

@@ -8,7 +8,6 @@ use whirl::config::job::Job;
 use whirl::config::machine::{Axis, MachineProfile};
 use whirl::program::limits::check_limits;
 use whirl::program::{Move, Pose};
-use whirl::protocol::modbus::map;
 
 /// Every example job plans on the two machines that are not reached by G-code, and
 /// what is planned fits their links: the register map's segments (whose 0.1 µm and
@@ -41,9 +40,10 @@ fn the_examples_plan_on_the_modbus_and_can_machines() {
             check_limits(&plan.program, machine).unwrap();
             // Modbus: every block fits a segment, and the shortest linked move is within
             // a controller that takes 55 segments a second (the profile's comment).
-            let segments =
-                map::segments(&plan.program).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-            map::check_rate(&segments, 55).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            let segments = whirl::post::modbus::segments(&plan.program)
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            whirl::post::modbus::check_rate(&segments, 55)
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             // CAN: X and Z stay in INTEGER32 counts, and every linked move spans at
             // least four cycles.
             for step in plan.program.steps(Pose::UNKNOWN) {

@@ -16,8 +16,9 @@ use crate::util;
 use whirl::config::job::Job;
 use whirl::config::machine::MachineProfile;
 use whirl::judge::simulator::machine;
+use whirl::post::modbus::Segment;
 use whirl::program::{Pose, Program};
-use whirl::protocol::modbus::map::{self, Segment, State};
+use whirl::protocol::modbus::map::State;
 use whirl::protocol::modbus::{
     Exception, Request, Response, RingWriter, WriterEvent, WriterOptions,
 };
@@ -119,7 +120,7 @@ fn a_planned_program_streams_through_the_register_map_each_segment_once() {
     let program = Program {
         moves: plan.program.moves[..300].to_vec(),
     };
-    let segments = map::segments(&program).unwrap();
+    let segments = whirl::post::modbus::segments(&program).unwrap();
     let count = segments.len() as u32;
     assert!(
         segments

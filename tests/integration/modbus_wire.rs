@@ -25,8 +25,9 @@ use whirl::config::job::Job;
 use whirl::config::machine::MachineProfile;
 use whirl::judge::dry_run::MODBUS_TIME_SCALE;
 use whirl::log::ExecLog;
+use whirl::post::modbus::Segment;
 use whirl::program::{Move, Pose, Program};
-use whirl::protocol::modbus::map::{self, AlarmCode, Segment, WordOrder};
+use whirl::protocol::modbus::map::{AlarmCode, WordOrder};
 use whirl::protocol::modbus::{Exception, WriterError, WriterOptions};
 use whirl::transport::modbus::{stream_modbus, ModbusLink, ModbusOptions, ModbusOutcome};
 use whirl_sim::modbus::serve::{serve_tcp, ClockOptions, SharedBank};
@@ -340,7 +341,7 @@ fn program(blocks: usize) -> (Vec<Segment>, Vec<u32>) {
             .cloned()
             .collect(),
     };
-    let segments = map::segments(&program).unwrap();
+    let segments = whirl::post::modbus::segments(&program).unwrap();
     // Sequence numbers are 1, 2, … in program order past the comments, which are no
     // segments; a segment moves the machine unless it ends where the machine already is
     // (grbl plans no block for that).

@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use thiserror::Error;
 
-use crate::program::{Move, Program};
+use crate::post::modbus::{Segment, ANGULAR_UNITS_PER_DEG, LINEAR_UNITS_PER_MM};
 
 /// The controller's Modbus unit id.
 pub const UNIT_ID: u8 = 1;
@@ -125,24 +125,9 @@ pub mod flag {
     pub const C: u16 = 1 << 10;
 }
 
-/// X and Z units per millimetre (0.1 µm).
-pub const LINEAR_UNITS_PER_MM: f64 = 1e4;
-/// C units per degree (10⁻⁴ °).
-pub const ANGULAR_UNITS_PER_DEG: f64 = 1e4;
-
 /// Why registers could not be encoded or decoded, or a program carried.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum MapError {
-    /// A program block the map cannot carry.
-    #[error("block {index} ({block}): {reason}")]
-    Move {
-        /// Its index in [`Program::moves`].
-        index: usize,
-        /// The block, briefly.
-        block: String,
-        /// Why.
-        reason: String,
-    },
     /// A register of the identification or status block holds a value this map does not
     /// allow.
     #[error("register {register} holds {value:#06x}: {reason}")]
@@ -163,21 +148,6 @@ pub enum MapError {
         expected: usize,
         /// Registers given.
         got: usize,
-    },
-    /// A linked move shorter than the controller can execute at its programmed duration.
-    #[error(
-        "segment {index} lasts {duration_us} µs; the controller \
-         executes at most {rate} segments/s, so at least {min_us} µs"
-    )]
-    TooShort {
-        /// Its index in the segment list.
-        index: usize,
-        /// Its duration, µs.
-        duration_us: u32,
-        /// `MAX_SEGMENT_RATE`.
-        rate: u16,
-        /// The shortest duration that rate allows, µs.
-        min_us: u32,
     },
 }
 
@@ -287,58 +257,6 @@ pub fn slot_crc(registers: &[u16]) -> u16 {
     crc16(&bytes)
 }
 
-/// One segment as a slot carries it, in the map's units: X and Z in 0.1 µm
-/// ([`LINEAR_UNITS_PER_MM`]), C in 10⁻⁴ ° ([`ANGULAR_UNITS_PER_DEG`]), absolute machine
-/// positions.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Segment {
-    /// A linked C/X/Z move that takes `duration_us` (G93 G1).
-    Linked {
-        /// Target X, 0.1 µm (radius).
-        x: i32,
-        /// Target Z, 0.1 µm.
-        z: i32,
-        /// Target C, 10⁻⁴ °.
-        c: i64,
-        /// Duration, µs, at least 1.
-        duration_us: u32,
-    },
-    /// A rapid (G0); `None` axes do not move.
-    Rapid {
-        /// Target X, 0.1 µm.
-        x: Option<i32>,
-        /// Target Z, 0.1 µm.
-        z: Option<i32>,
-        /// Target C, 10⁻⁴ °.
-        c: Option<i64>,
-    },
-    /// A feed move in units per minute (G94 G1); `None` axes do not move.
-    Feed {
-        /// Target X, 0.1 µm.
-        x: Option<i32>,
-        /// Target Z, 0.1 µm.
-        z: Option<i32>,
-        /// Target C, 10⁻⁴ °.
-        c: Option<i64>,
-        /// Feed, 0.001 mm/min (0.001 deg/min for C alone), at least 1.
-        feed: u32,
-    },
-    /// A dwell (G4).
-    Dwell {
-        /// How long, µs.
-        duration_us: u32,
-    },
-    /// The whirling ring on, clockwise (M3 S).
-    SpindleOn {
-        /// Speed, 0.001 rev/min.
-        rpm: u32,
-    },
-    /// The whirling ring off (M5).
-    SpindleOff,
-    /// Program end (M2).
-    ProgramEnd,
-}
-
 impl Segment {
     /// The slot carrying this segment as sequence number `sequence`, in address order,
     /// with its CRC.
@@ -394,134 +312,6 @@ fn flags(x: Option<i32>, z: Option<i32>, c: Option<i64>) -> u16 {
 /// (0 is never used).
 pub fn next_sequence(sequence: u32) -> u32 {
     sequence.checked_add(1).unwrap_or(1)
-}
-
-/// `Program`'s blocks as segments, in order, with a [`Segment::ProgramEnd`] after the
-/// last (the program model leaves M2 to its writers, as the G-code post-processor writes
-/// it). Comments are dropped: nothing on the controller reads them.
-///
-/// Refused, naming the block: C renaming (`G92 C`, `G92.1`), since slots carry machine
-/// positions and the map has no work offsets; a value that is not finite or does not fit
-/// its field; a linked move or feed that rounds to zero.
-pub fn segments(program: &Program) -> Result<Vec<Segment>, MapError> {
-    let mut out = Vec::with_capacity(program.moves.len() + 1);
-    for (index, block) in program.moves.iter().enumerate() {
-        let refuse = |what: &str, reason: String| MapError::Move {
-            index,
-            block: what.to_owned(),
-            reason,
-        };
-        let linear = |what: &str, mm: f64| {
-            linear_units(mm).ok_or_else(|| {
-                refuse(
-                    what,
-                    format!("{mm} mm is not finite or beyond ±214 748.3647 mm (i32 of 0.1 µm)"),
-                )
-            })
-        };
-        let angular = |what: &str, deg: f64| {
-            angular_units(deg).ok_or_else(|| {
-                refuse(
-                    what,
-                    format!("{deg}° is not finite or beyond an i64 of 10⁻⁴ °"),
-                )
-            })
-        };
-        let segment = match *block {
-            Move::Comment(_) => continue,
-            Move::Rapid { x, z, c } => Segment::Rapid {
-                x: x.map(|v| linear("G0", v)).transpose()?,
-                z: z.map(|v| linear("G0", v)).transpose()?,
-                c: c.map(|v| angular("G0", v)).transpose()?,
-            },
-            Move::Feed { x, z, c, feed } => Segment::Feed {
-                x: x.map(|v| linear("G1", v)).transpose()?,
-                z: z.map(|v| linear("G1", v)).transpose()?,
-                c: c.map(|v| angular("G1", v)).transpose()?,
-                feed: thousandths(feed).filter(|&f| f > 0).ok_or_else(|| {
-                    refuse(
-                        "G1",
-                        format!("feed {feed} is not between 0.001 and 4 294 967.295 per minute"),
-                    )
-                })?,
-            },
-            Move::Linked { x, z, c, minutes } => Segment::Linked {
-                x: linear("G93 G1", x)?,
-                z: linear("G93 G1", z)?,
-                c: angular("G93 G1", c)?,
-                duration_us: micros(minutes * 60.0).filter(|&d| d > 0).ok_or_else(|| {
-                    refuse(
-                        "G93 G1",
-                        format!(
-                            "{minutes} min is not between 1 µs and 4 294.967295 s \
-                                 (u32 of µs)"
-                        ),
-                    )
-                })?,
-            },
-            Move::SpindleOn { rpm } => Segment::SpindleOn {
-                rpm: thousandths(rpm).ok_or_else(|| {
-                    refuse(
-                        "M3",
-                        format!("{rpm} rpm is not between 0 and 4 294 967.295 rpm"),
-                    )
-                })?,
-            },
-            Move::SpindleOff => Segment::SpindleOff,
-        };
-        out.push(segment);
-    }
-    out.push(Segment::ProgramEnd);
-    Ok(out)
-}
-
-/// Millimetres as 0.1 µm, rounded to nearest, if finite and within i32.
-fn linear_units(mm: f64) -> Option<i32> {
-    let v = (mm * LINEAR_UNITS_PER_MM).round();
-    (f64::from(i32::MIN)..=f64::from(i32::MAX))
-        .contains(&v)
-        .then_some(v as i32)
-}
-
-/// Degrees as 10⁻⁴ °, rounded to nearest, if finite and within i64.
-fn angular_units(deg: f64) -> Option<i64> {
-    let v = (deg * ANGULAR_UNITS_PER_DEG).round();
-    // −2⁶³ and 2⁶³ are exact in f64; i64 holds [−2⁶³, 2⁶³).
-    (-9_223_372_036_854_775_808.0..9_223_372_036_854_775_808.0)
-        .contains(&v)
-        .then_some(v as i64)
-}
-
-/// A value in thousandths, rounded to nearest, if finite and within u32.
-fn thousandths(value: f64) -> Option<u32> {
-    let v = (value * 1000.0).round();
-    (0.0..=f64::from(u32::MAX)).contains(&v).then_some(v as u32)
-}
-
-/// Seconds as µs, rounded to nearest, if finite and within u32.
-fn micros(seconds: f64) -> Option<u32> {
-    let v = (seconds * 1e6).round();
-    (0.0..=f64::from(u32::MAX)).contains(&v).then_some(v as u32)
-}
-
-/// Checks that every linked move lasts at least 1 / `max_rate` s: a shorter one would
-/// run slower than planned on a controller that executes at most `max_rate` segments a
-/// second. Names the first that does not.
-pub fn check_rate(segments: &[Segment], max_rate: u16) -> Result<(), MapError> {
-    let min_us = 1_000_000u32.div_ceil(u32::from(max_rate.max(1)));
-    for (index, segment) in segments.iter().enumerate() {
-        if let Segment::Linked { duration_us, .. } = *segment {
-            if duration_us < min_us {
-                return Err(MapError::TooShort {
-                    index,
-                    duration_us,
-                    rate: max_rate,
-                    min_us,
-                });
-            }
-        }
-    }
-    Ok(())
 }
 
 /// The identification block (registers 0–7).
@@ -806,6 +596,8 @@ fn exact<const N: usize>(registers: &[u16], what: &'static str) -> Result<[u16; 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::post::modbus::segments;
+    use crate::program::{Move, Program};
 
     #[test]
     fn crc_is_crc16_modbus() {
@@ -953,154 +745,9 @@ mod tests {
     }
 
     #[test]
-    fn a_program_becomes_segments_in_order() {
-        let program = Program {
-            moves: vec![
-                Move::Comment("groove".into()),
-                Move::Rapid {
-                    x: Some(30.0),
-                    z: None,
-                    c: Some(0.0),
-                },
-                Move::SpindleOn { rpm: 2500.5 },
-                Move::Feed {
-                    x: Some(24.0001),
-                    z: None,
-                    c: None,
-                    feed: 100.0,
-                },
-                Move::Linked {
-                    x: 24.0,
-                    z: 0.5,
-                    c: 360.0,
-                    minutes: 0.5 / 60.0,
-                },
-                Move::SpindleOff,
-            ],
-        };
-        assert_eq!(
-            segments(&program).unwrap(),
-            vec![
-                Segment::Rapid {
-                    x: Some(300_000),
-                    z: None,
-                    c: Some(0)
-                },
-                Segment::SpindleOn { rpm: 2_500_500 },
-                Segment::Feed {
-                    x: Some(240_001),
-                    z: None,
-                    c: None,
-                    feed: 100_000
-                },
-                Segment::Linked {
-                    x: 240_000,
-                    z: 5_000,
-                    c: 3_600_000,
-                    duration_us: 500_000
-                },
-                Segment::SpindleOff,
-                Segment::ProgramEnd,
-            ]
-        );
-    }
-
-    #[test]
-    fn blocks_the_map_cannot_carry_are_named() {
-        let refused = |block: Move| {
-            let program = Program {
-                moves: vec![Move::Comment("x".into()), block],
-            };
-            match segments(&program) {
-                Err(MapError::Move { index, block, .. }) => (index, block),
-                other => panic!("expected a refusal, got {other:?}"),
-            }
-        };
-        let linked = |x: f64, c: f64, minutes: f64| Move::Linked {
-            x,
-            z: 0.0,
-            c,
-            minutes,
-        };
-        assert_eq!(refused(linked(f64::NAN, 0.0, 1.0)).1, "G93 G1");
-        // i32 of 0.1 µm ends at 214 748.3647 mm.
-        assert_eq!(refused(linked(214_748.4, 0.0, 1.0)).0, 1);
-        assert_eq!(refused(linked(0.0, f64::INFINITY, 1.0)).0, 1);
-        assert_eq!(refused(linked(0.0, 1e16, 1.0)).0, 1);
-        // Half a µs rounds to zero; 72 min is beyond u32 µs (71.58 min).
-        assert_eq!(refused(linked(0.0, 0.0, 0.4e-6 / 60.0)).0, 1);
-        assert_eq!(refused(linked(0.0, 0.0, 72.0)).0, 1);
-        let rapid = Move::Rapid {
-            x: None,
-            z: Some(-1e9),
-            c: None,
-        };
-        assert_eq!(refused(rapid).1, "G0");
-        let rapid_c = Move::Rapid {
-            x: None,
-            z: None,
-            c: Some(f64::NAN),
-        };
-        assert_eq!(refused(rapid_c).1, "G0");
-        let feed = |x: f64, feed: f64| Move::Feed {
-            x: Some(x),
-            z: None,
-            c: None,
-            feed,
-        };
-        assert_eq!(refused(feed(1.0, 0.0)).1, "G1");
-        assert_eq!(refused(feed(1.0, 5e6)).1, "G1");
-        assert_eq!(refused(feed(f64::NAN, 1.0)).1, "G1");
-        let feed_c = Move::Feed {
-            x: None,
-            z: None,
-            c: Some(1e300),
-            feed: 1.0,
-        };
-        assert_eq!(refused(feed_c).1, "G1");
-        assert_eq!(refused(Move::SpindleOn { rpm: -1.0 }).1, "M3");
-        // The message names the block.
-        let err = segments(&Program {
-            moves: vec![Move::SpindleOn { rpm: -1.0 }],
-        })
-        .unwrap_err();
-        assert!(err.to_string().starts_with("block 0 (M3): "), "{err}");
-    }
-
-    #[test]
     fn sequence_numbers_skip_zero() {
         assert_eq!(next_sequence(1), 2);
         assert_eq!(next_sequence(u32::MAX), 1);
-    }
-
-    #[test]
-    fn rate_check_names_the_short_segment() {
-        let linked = |duration_us| Segment::Linked {
-            x: 0,
-            z: 0,
-            c: 0,
-            duration_us,
-        };
-        // 1000 segments/s: 1 ms each at least.
-        let segs = [Segment::SpindleOff, linked(1000), linked(999)];
-        assert_eq!(check_rate(&segs[..2], 1000), Ok(()));
-        assert_eq!(
-            check_rate(&segs, 1000),
-            Err(MapError::TooShort {
-                index: 2,
-                duration_us: 999,
-                rate: 1000,
-                min_us: 1000
-            })
-        );
-        // 3 segments/s: ⌈333 333.3⌉ µs.
-        assert!(matches!(
-            check_rate(&[linked(333_333)], 3),
-            Err(MapError::TooShort {
-                min_us: 333_334,
-                ..
-            })
-        ));
     }
 
     fn ident_registers() -> [u16; 8] {

@@ -4,9 +4,8 @@
 //! or RTU) carries the [`Request`]s and brings back the answers.
 //!
 //! - [`map`]: the register map as values: addresses, control bits, alarm codes, the word
-//!   order of 32- and 64-bit values, [`map::Segment`]s from a planned
-//!   [`Program`](crate::program::Program) and their slots (sequence number, CRC),
-//!   the identification and status blocks decoded.
+//!   order of 32- and 64-bit values, the slots that carry [`Segment`]s (sequence
+//!   number, CRC), the identification and status blocks decoded.
 //! - [`RingWriter`]: one program streamed through the ring: what to request next, what
 //!   the answers mean.
 //!
@@ -55,10 +54,9 @@ use std::time::Duration;
 
 use thiserror::Error;
 
-use map::{
-    check_rate, control, reg, AlarmReport, Identification, MapError, Segment, State, Status,
-    SLOT_SIZE,
-};
+use crate::post::modbus::{check_rate, Segment, SegmentError};
+
+use map::{control, reg, AlarmReport, Identification, MapError, State, Status, SLOT_SIZE};
 
 /// A request to the controller: function codes 03, 06 and 16, unit id [`map::UNIT_ID`].
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -193,10 +191,12 @@ pub enum WriterError {
     /// The first sequence number was 0, which the map never uses.
     #[error("the first sequence number must not be 0")]
     ZeroSequence,
-    /// The identification or status block, or the program against the controller's
-    /// segment rate.
+    /// The identification or status block.
     #[error(transparent)]
     Map(#[from] MapError),
+    /// The program against the controller's segment rate.
+    #[error(transparent)]
+    Segments(#[from] SegmentError),
     /// The controller was not idle or done when the stream began.
     #[error("the controller is {:?}, not idle or done{}", .0.state, .0.alarm.map(|a| format!(" ({a})")).unwrap_or_default())]
     NotReady(Status),
@@ -309,7 +309,7 @@ pub struct RingWriter {
 }
 
 impl RingWriter {
-    /// A writer for `segments` (see [`map::segments`]), not started: the first
+    /// A writer for `segments` (see [`segments`](crate::post::modbus::segments)), not started: the first
     /// [`RingWriter::poll`] starts it.
     pub fn new(segments: Vec<Segment>, options: WriterOptions) -> Result<RingWriter, WriterError> {
         if options.first_sequence == 0 {
@@ -576,17 +576,19 @@ impl RingWriter {
     }
 
     fn identified(&mut self, registers: &[u16]) {
-        let checked = Identification::decode(registers).and_then(|ident| {
-            check_rate(&self.segments, ident.max_segment_rate)?;
-            Ok(ident)
-        });
+        let checked = Identification::decode(registers)
+            .map_err(WriterError::from)
+            .and_then(|ident| {
+                check_rate(&self.segments, ident.max_segment_rate)?;
+                Ok(ident)
+            });
         match checked {
             Ok(ident) => {
                 self.ident = Some(ident);
                 self.events.push_back(WriterEvent::Identified(ident));
                 self.phase = Phase::Inspect;
             }
-            Err(e) => self.fail(e.into()),
+            Err(e) => self.fail(e),
         }
     }
 
@@ -1148,7 +1150,10 @@ mod tests {
         fake.rate = 50;
         assert!(matches!(
             first_event(&mut fake, linked(1)),
-            WriterEvent::Failed(WriterError::Map(MapError::TooShort { min_us: 20_000, .. }))
+            WriterEvent::Failed(WriterError::Segments(SegmentError::TooShort {
+                min_us: 20_000,
+                ..
+            }))
         ));
     }
 
@@ -1271,7 +1276,7 @@ mod tests {
         let program = Program {
             moves: vec![Move::SpindleOn { rpm: 1000.0 }, Move::SpindleOff],
         };
-        let mut w = writer(map::segments(&program).unwrap());
+        let mut w = writer(crate::post::modbus::segments(&program).unwrap());
         let mut fake = Fake::new(8);
         drive(&mut w, &mut fake, Duration::ZERO);
         let kinds: Vec<u16> = (0..3).map(|i| fake.ring[i * 16 + 2]).collect();
