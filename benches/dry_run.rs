@@ -9,8 +9,9 @@
 use std::path::Path;
 use whirl::config::job::Job;
 use whirl::config::machine::MachineProfile;
-use whirl::judge::dry_run::{dry_run, DryRunOptions};
+use whirl::judge::dry_run::{dry_run, DryRunOptions, DryRunReport};
 use whirl::log::ExecLog;
+use whirl::transport::{Posted, TransportKind};
 
 fn main() {
     divan::main();
@@ -22,29 +23,7 @@ fn main() {
     sample_size = 1
 )]
 fn example(name: &str) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("examples")
-        .join(name)
-        .join("job.toml");
-    let job = Job::load(&path).expect("the example loads");
-    let machine = MachineProfile::builtin_sim().expect("the built-in profile");
-    let plan = whirl::plan::plan(&job, &machine).expect("the example plans");
-    let lines = plan.text.lines().map(str::to_owned).collect();
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("a runtime");
-    let report = runtime
-        .block_on(dry_run(
-            &job,
-            &machine,
-            name,
-            lines,
-            DryRunOptions::default(),
-            &mut ExecLog::discard(),
-        ))
-        .expect("the dry run runs");
-    assert!(report.within_delta, "{report:?}");
+    let report = run(name, "machine-profiles/sim.toml", TransportKind::Serial);
     eprintln!(
         "{name}: {} lines, {:.0} s of machine time, error {:.4} mm of Δ {} mm, link {:.1} % busy",
         report.lines,
@@ -64,36 +43,11 @@ fn example(name: &str) {
     sample_size = 1
 )]
 fn can_slcan(name: &str) {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let path = root.join("examples").join(name).join("job.toml");
-    let job = Job::load(&path).expect("the example loads");
-    let machine = MachineProfile::load(&root.join("machine-profiles/canopen-drives.toml"))
-        .expect("the CANopen profile");
-    let drives = machine
-        .connection
-        .as_ref()
-        .and_then(|c| c.drives())
-        .expect("the profile's drives");
-    let plan = whirl::plan::plan(&job, &machine).expect("the example plans");
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("a runtime");
-    let report = runtime
-        .block_on(whirl::judge::dry_run::dry_run_can(
-            &job,
-            &machine,
-            name,
-            &plan.program,
-            whirl::judge::dry_run::CanDrives {
-                drives,
-                bitrate: whirl::protocol::canopen::slcan::Bitrate::M1,
-                on_progress: None,
-            },
-            &mut ExecLog::discard(),
-        ))
-        .expect("the dry run runs");
-    assert!(report.within_delta, "{report:?}");
+    let report = run(
+        name,
+        "machine-profiles/canopen-drives.toml",
+        TransportKind::CanSlcan,
+    );
     eprintln!(
         "{name} over can-slcan: {} set-points, {:.0} s of machine time, overcut {:.4} mm, \
          undercut {:.4} mm of Δ {} mm, bus {:.1} % busy",
@@ -104,4 +58,34 @@ fn can_slcan(name: &str) {
         report.delta_mm,
         100.0 * report.link_utilization
     );
+}
+
+/// Plans the example `name` for the machine `profile` and dry-runs it over `transport`,
+/// as `whirl dry-run` does; the job must complete within Δ.
+fn run(name: &str, profile: &str, transport: TransportKind) -> DryRunReport {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let job =
+        Job::load(&root.join("examples").join(name).join("job.toml")).expect("the example loads");
+    let machine = MachineProfile::load(&root.join(profile)).expect("the profile loads");
+    let plan = whirl::plan::plan(&job, &machine).expect("the example plans");
+    let posted = Posted::read(name, &plan.text, &machine).expect("the program reads");
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("a runtime");
+    let options = DryRunOptions {
+        transport,
+        ..DryRunOptions::default()
+    };
+    let report = runtime
+        .block_on(dry_run(
+            &job,
+            &machine,
+            &posted,
+            options,
+            &mut ExecLog::discard(),
+        ))
+        .expect("the dry run runs");
+    assert!(report.within_delta, "{report:?}");
+    report
 }

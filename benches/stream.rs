@@ -18,7 +18,8 @@ use tokio::sync::oneshot;
 use tokio_serial::{SerialPort, SerialPortBuilderExt};
 use whirl::config::machine::MachineProfile;
 use whirl::log::ExecLog;
-use whirl::transport::{check_program, stream, StreamOptions, StreamOutcome};
+use whirl::transport::check_program;
+use whirl::transport::serial::{stream, StreamOptions, StreamOutcome};
 use whirl_sim::serve::{serve, ServeOptions};
 use whirl_sim::{Controller, ControllerOptions, Event};
 

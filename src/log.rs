@@ -134,13 +134,25 @@ pub enum LogError {
     },
 }
 
-/// An append-only log file. Clones write to the same file, a whole event at a time, so the
-/// streamer and an in-process simulator can log side by side.
+/// Where a run's events go: an append-only file, memory, or nowhere. Clones write to the
+/// same place, a whole event at a time, so the streamer and an in-process simulator can log
+/// side by side.
 #[derive(Debug, Clone)]
 pub struct ExecLog {
-    /// `None`: events are dropped (a dry run without a log).
-    file: Option<Arc<Mutex<File>>>,
-    path: PathBuf,
+    sink: Sink,
+}
+
+#[derive(Debug, Clone)]
+enum Sink {
+    /// One line an event, appended and flushed.
+    File {
+        file: Arc<Mutex<File>>,
+        path: PathBuf,
+    },
+    /// Kept for the caller ([`ExecLog::records`]).
+    Memory(Arc<Mutex<Vec<Record>>>),
+    /// Dropped (a dry run without a log).
+    Discard,
 }
 
 impl ExecLog {
@@ -155,36 +167,66 @@ impl ExecLog {
                 source,
             })?;
         Ok(ExecLog {
-            file: Some(Arc::new(Mutex::new(file))),
-            path: path.to_owned(),
+            sink: Sink::File {
+                file: Arc::new(Mutex::new(file)),
+                path: path.to_owned(),
+            },
         })
+    }
+
+    /// A log kept in memory, for a front end that shows a run as it goes, or a test.
+    pub fn memory() -> ExecLog {
+        ExecLog {
+            sink: Sink::Memory(Arc::default()),
+        }
     }
 
     /// A log that keeps nothing, for a run the caller asked no log of.
     pub fn discard() -> ExecLog {
         ExecLog {
-            file: None,
-            path: PathBuf::new(),
+            sink: Sink::Discard,
         }
     }
 
-    /// Append one event: one line, written in one call and flushed to the OS.
-    pub fn write(&mut self, t: f64, event: Event) -> Result<(), LogError> {
-        let Some(file) = &self.file else {
-            return Ok(());
-        };
-        let mut line =
-            serde_json::to_string(&Record { t, event }).expect("log events always serialise");
-        line.push('\n');
-        // A writer that panicked mid-line left at most a torn line, which `read` tolerates.
-        let mut file = file.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        file.write_all(line.as_bytes())
-            .and_then(|()| file.flush())
-            .map_err(|source| LogError::Io {
-                path: self.path.clone(),
-                source,
-            })
+    /// The events a memory log holds so far, in order (none for a file or a discarding
+    /// log: read a file back with [`read`]).
+    pub fn records(&self) -> Vec<Record> {
+        match &self.sink {
+            Sink::Memory(records) => lock(records).clone(),
+            Sink::File { .. } | Sink::Discard => Vec::new(),
+        }
     }
+
+    /// Append one event: to a file, one line written in one call and flushed to the OS.
+    pub fn write(&mut self, t: f64, event: Event) -> Result<(), LogError> {
+        match &self.sink {
+            Sink::File { file, path } => {
+                let mut line = serde_json::to_string(&Record { t, event })
+                    .expect("log events always serialise");
+                line.push('\n');
+                let mut file = lock(file);
+                file.write_all(line.as_bytes())
+                    .and_then(|()| file.flush())
+                    .map_err(|source| LogError::Io {
+                        path: path.clone(),
+                        source,
+                    })
+            }
+            Sink::Memory(records) => {
+                lock(records).push(Record { t, event });
+                Ok(())
+            }
+            Sink::Discard => Ok(()),
+        }
+    }
+}
+
+/// A writer that panicked mid-event left at most a torn line in a file (which [`read`]
+/// tolerates) or a whole record in memory: either way the log is still usable.
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
 /// A log as read back: its records, and whether the last line was torn (a crash mid-write).
@@ -371,6 +413,26 @@ mod tests {
         assert!(!read.torn_tail);
         let back: Vec<(f64, Event)> = read.records.into_iter().map(|r| (r.t, r.event)).collect();
         assert_eq!(&back[..sample().len()], &sample()[..]);
+    }
+
+    #[test]
+    fn a_memory_log_keeps_every_event_in_order_for_every_clone() {
+        let mut log = ExecLog::memory();
+        let mut clone = log.clone();
+        for (i, (t, e)) in sample().into_iter().enumerate() {
+            if i % 2 == 0 {
+                log.write(t, e).unwrap();
+            } else {
+                clone.write(t, e).unwrap();
+            }
+        }
+        let kept: Vec<(f64, Event)> = log.records().into_iter().map(|r| (r.t, r.event)).collect();
+        assert_eq!(kept, sample());
+        assert_eq!(clone.records().len(), sample().len());
+        // Nothing is kept by the others.
+        let mut discard = ExecLog::discard();
+        discard.write(0.0, sample()[0].1.clone()).unwrap();
+        assert!(discard.records().is_empty());
     }
 
     #[test]

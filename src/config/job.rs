@@ -14,9 +14,10 @@ use serde::Deserialize;
 use std::f64::consts::TAU;
 use std::path::{Path, PathBuf};
 
-/// A whole job file.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// A job, read and checked: the job file's values, and the groove's profile built from its
+/// points (read relative to the job file) or its standard. Everything the planner needs,
+/// as values: planning reads no file.
+#[derive(Debug, Clone)]
 pub struct Job {
     /// The helical groove.
     pub groove: Groove,
@@ -24,9 +25,17 @@ pub struct Job {
     pub tool: Tool,
     /// Cutting parameters.
     pub cut: Cut,
-    /// Directory the job file was read from (profile paths are relative to it).
-    #[serde(skip)]
-    pub dir: PathBuf,
+    /// The groove's transverse profile, validated.
+    pub profile: Profile,
+}
+
+/// The job file as written.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JobFile {
+    groove: Groove,
+    tool: Tool,
+    cut: Cut,
 }
 
 /// Right- or left-hand helix.
@@ -187,28 +196,82 @@ pub enum JobError {
 }
 
 impl Job {
-    /// Read and check a job file.
+    /// Read and check a job file, and the profile points it names.
     pub fn load(path: &Path) -> Result<Job, JobError> {
         let text = std::fs::read_to_string(path).map_err(|source| JobError::Read {
             path: path.to_owned(),
             source,
         })?;
-        let mut job = Job::parse(&text).map_err(|source| JobError::Parse {
+        Job::from_toml(&text, path)
+    }
+
+    /// Read and check a job from its TOML text; `path` is where the text came from, named in
+    /// errors, and its folder is where a profile's points file is read from.
+    pub fn from_toml(text: &str, path: &Path) -> Result<Job, JobError> {
+        let file: JobFile = toml::from_str(text).map_err(|source| JobError::Parse {
             path: path.to_owned(),
             source: Box::new(source),
         })?;
-        job.dir = path.parent().map(Path::to_owned).unwrap_or_default();
-        job.validate()?;
-        Ok(job)
+        file.validate()?;
+        let profile = file.profile(path.parent().unwrap_or(Path::new("")))?;
+        let JobFile { groove, tool, cut } = file;
+        Ok(Job {
+            groove,
+            tool,
+            cut,
+            profile,
+        })
     }
 
-    /// Parse job TOML (without checking values; see [`Job::validate`]).
-    pub fn parse(text: &str) -> Result<Job, toml::de::Error> {
-        toml::from_str(text)
+    /// Lead parameter p = ±lead / 2π (+ right hand).
+    pub fn p(&self) -> f64 {
+        self.groove.p()
     }
 
+    /// Polar period 2π / starts.
+    pub fn period(&self) -> f64 {
+        self.groove.period()
+    }
+
+    /// The ring, with the installation angle resolved: given, or the lead angle at the
+    /// profile's mean radius, atan(|p| / ρ_mean).
+    pub fn ring(&self) -> Ring {
+        let installation = match self.tool.installation_angle_deg {
+            Some(d) => d.to_radians(),
+            None => {
+                let (lo, hi) = self.profile.radius_range();
+                (self.p().abs() / ((lo + hi) / 2.0)).atan()
+            }
+        };
+        Ring {
+            whirling: self.tool.whirling,
+            radius: self.tool.ring_radius,
+            nose: self.tool.nose_radius,
+            installation,
+            edge_half_angle: self.tool.edge_arc_deg.unwrap_or(180.0).to_radians() / 2.0,
+        }
+    }
+}
+
+impl Groove {
+    /// Lead parameter p = ±lead / 2π (+ right hand).
+    pub fn p(&self) -> f64 {
+        let p = self.lead / TAU;
+        match self.hand {
+            Hand::Right => p,
+            Hand::Left => -p,
+        }
+    }
+
+    /// Polar period 2π / starts.
+    pub fn period(&self) -> f64 {
+        TAU / f64::from(self.starts)
+    }
+}
+
+impl JobFile {
     /// Check every value's range, naming the key.
-    pub fn validate(&self) -> Result<(), JobError> {
+    fn validate(&self) -> Result<(), JobError> {
         let positive = |key: &'static str, v: f64| {
             if v.is_finite() && v > 0.0 {
                 Ok(())
@@ -293,22 +356,9 @@ impl Job {
         Ok(())
     }
 
-    /// Lead parameter p = ±lead / 2π (+ right hand).
-    pub fn p(&self) -> f64 {
-        let p = self.groove.lead / TAU;
-        match self.groove.hand {
-            Hand::Right => p,
-            Hand::Left => -p,
-        }
-    }
-
-    /// Polar period 2π / starts.
-    pub fn period(&self) -> f64 {
-        TAU / f64::from(self.groove.starts)
-    }
-
-    /// The groove's transverse profile, from points or a standard.
-    pub fn profile(&self) -> Result<Profile, JobError> {
+    /// The groove's transverse profile, from points (their file relative to `dir`) or a
+    /// standard.
+    fn profile(&self, dir: &Path) -> Result<Profile, JobError> {
         let spec = &self.groove.profile;
         let standard_keys = [
             ("major_diameter", spec.major_diameter.is_some()),
@@ -333,7 +383,7 @@ impl Job {
                         "{key} belongs to a standard profile, not to points"
                     )));
                 }
-                let path = self.dir.join(file);
+                let path = dir.join(file);
                 let text = std::fs::read_to_string(&path).map_err(|source| JobError::Read {
                     path: path.clone(),
                     source,
@@ -351,7 +401,7 @@ impl Job {
                     &rows,
                     section,
                     spec.mirror.unwrap_or(false),
-                    self.p(),
+                    self.groove.p(),
                     self.groove.starts,
                 )
                 .map_err(points_err)
@@ -368,8 +418,8 @@ impl Job {
                 let pitch = self.groove.lead / f64::from(self.groove.starts);
                 Ok(Profile::from_axial(
                     standard.pieces(pitch)?,
-                    self.p(),
-                    self.period(),
+                    self.groove.p(),
+                    self.groove.period(),
                 ))
             }
         }
@@ -419,24 +469,5 @@ impl Job {
                 )?)
             }
         })
-    }
-
-    /// The ring, with the installation angle resolved: given, or the lead angle at the
-    /// profile's mean radius, atan(|p| / ρ_mean).
-    pub fn ring(&self, profile: &Profile) -> Ring {
-        let installation = match self.tool.installation_angle_deg {
-            Some(d) => d.to_radians(),
-            None => {
-                let (lo, hi) = profile.radius_range();
-                (self.p().abs() / ((lo + hi) / 2.0)).atan()
-            }
-        };
-        Ring {
-            whirling: self.tool.whirling,
-            radius: self.tool.ring_radius,
-            nose: self.tool.nose_radius,
-            installation,
-            edge_half_angle: self.tool.edge_arc_deg.unwrap_or(180.0).to_radians() / 2.0,
-        }
     }
 }

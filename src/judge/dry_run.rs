@@ -1,16 +1,21 @@
-//! `whirl dry-run`: a planned job streamed to the simulated controller before it goes near
-//! metal.
+//! `whirl dry-run`: a planned job run on the simulated controller before it goes near
+//! metal, through the same transport code a machine gets.
 //!
-//! The simulator runs in this process but behind a real pseudo-terminal, and the program
-//! goes through the same serial code a machine gets ([`transport::stream_port`]): the machine
-//! check before the first byte, character counting, status polling, the executed-path log.
-//! The simulator's Δ guard ([`crate::judge::guard`]) measures what it executes and raises
-//! `ALARM:64` as soon as the profile error exceeds Δ; every move it executes is written to
-//! the same log as the streamer's events. Its clock runs as fast as the host allows unless
-//! a time scale is given, so a job of hours dry-runs in seconds; the link's byte rate is
-//! emulated in simulated time either way, so its utilisation is what the real link's would
-//! be.
+//! [`dry_run`] is the one entry, for every transport the simulator serves: the grblHAL
+//! controller behind a real pseudo-terminal (serial), its Modbus register bank over TCP or
+//! RTU, or three CiA 402 drives behind an slcan adapter. The simulator runs in this process;
+//! the program goes through the same checks, protocol and log as on a machine, and the
+//! caller holds, resumes and aborts it with the same [`Commands`]. The simulator's Δ guard
+//! ([`crate::judge::guard`]) measures what it executes and stops it (`ALARM:64`) as soon as
+//! the profile error exceeds Δ; every move it executes is written to the same log as the
+//! transport's events. Its clock runs as fast as the host allows unless a time scale is
+//! given, so a job of hours dry-runs in seconds.
+//!
+//! [`preflight`] settles every refusal (the machine's limits, a transport the simulator
+//! does not serve, drives the profile does not describe) before anything is opened, so a
+//! caller can check before it opens a log; [`dry_run`] checks again.
 
+use crate::config::connection::{DriveSettings, SettingError};
 use crate::config::job::Job;
 use crate::config::machine::MachineProfile;
 use crate::judge::cycles::{self, MergedGuard};
@@ -18,12 +23,16 @@ use crate::judge::guard::DeltaGuard;
 use crate::judge::simulator;
 use crate::judge::verify::CheckError;
 use crate::log::{self, ExecLog, LogError};
+use crate::post::modbus::SegmentError;
 use crate::post::setpoints::SampleConfig;
 use crate::protocol::canopen::session::SessionConfig;
+use crate::protocol::canopen::slcan::Bitrate;
 use crate::protocol::grbl::codes::alarm_message;
-use crate::transport::{
-    self, link_utilization, ProgressFn, StreamError, StreamOptions, StreamOutcome,
+use crate::transport::link::can_bus;
+use crate::transport::serial::{
+    link_utilization, stream_port, Ending, SerialError, StreamOptions, StreamOutcome,
 };
+use crate::transport::{Commands, LinkError, Posted, PreflightError, ProgressFn, TransportKind};
 use serde::Serialize;
 use std::time::{Duration, Instant};
 use tokio_serial::SerialPort;
@@ -36,7 +45,11 @@ const FAST_STEP_S: f64 = 0.005;
 
 /// How a dry run runs.
 pub struct DryRunOptions {
-    /// Simulated seconds per wall second; `None`: as fast as the host allows.
+    /// How the program goes to the simulator: G-code over a serial line, segments through
+    /// the Modbus register map over TCP or RTU, or set-points to CAN drives through slcan.
+    pub transport: TransportKind,
+    /// Simulated seconds per wall second; `None`: as fast as the host allows (for Modbus,
+    /// [`MODBUS_TIME_SCALE`]).
     pub time_scale: Option<f64>,
     /// The link's baud rate, emulated in simulated time.
     pub baud: u32,
@@ -44,25 +57,29 @@ pub struct DryRunOptions {
     pub rx_size: usize,
     /// Give up (with a feed hold) after this long without progress, wall time.
     pub stall_timeout: Duration,
-    /// Progress as the stream goes, for a display.
-    pub on_progress: Option<ProgressFn>,
+    /// Told how far the run is, as it goes.
+    pub progress: Option<ProgressFn>,
+    /// The caller's hold, resume and abort.
+    pub commands: Option<Commands>,
 }
 
 impl Default for DryRunOptions {
     fn default() -> DryRunOptions {
         DryRunOptions {
+            transport: TransportKind::Serial,
             time_scale: None,
             baud: 115_200,
             rx_size: 1024,
             stall_timeout: Duration::from_secs(30),
-            on_progress: None,
+            progress: None,
+            commands: None,
         }
     }
 }
 
 /// An alarm the simulator raised.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct AlarmReport {
+pub struct Alarm {
     /// `ALARM:N`.
     pub code: u16,
     /// grbl's meaning of it.
@@ -114,7 +131,7 @@ pub struct DryRunReport {
     /// Target points of the groove.
     pub points: usize,
     /// Alarms the simulator raised, in order.
-    pub alarms: Vec<AlarmReport>,
+    pub alarms: Vec<Alarm>,
 }
 
 /// Why a dry run could not be carried out (a run that stops or exceeds Δ is not an error:
@@ -130,34 +147,43 @@ pub enum DryRunError {
     /// No pseudo-terminal.
     #[error("cannot open a pseudo-terminal for the simulator: {0}")]
     Pty(#[source] tokio_serial::Error),
-    /// Streaming failed (including the machine check, before anything was sent).
+    /// The program asks more of the machine than it has, or cannot be read (checked
+    /// before anything runs).
     #[error(transparent)]
-    Stream(#[from] StreamError),
+    Preflight(#[from] PreflightError),
+    /// The serial transport.
+    #[error(transparent)]
+    Stream(#[from] SerialError),
     /// The simulator stopped serving mid-run.
     #[error("the simulator stopped mid-run: {0}")]
     Simulator(std::io::Error),
     /// The executed-path log.
     #[error("executed-path log: {0}")]
     Log(#[from] LogError),
-    /// The program asks more of the machine than it has (checked before anything runs).
-    #[error("move {index} of the program: {source}", index = .source.index())]
-    Limits {
-        /// What it asks.
-        #[from]
-        source: crate::program::limits::LimitError,
-    },
     /// The program cannot go through the Modbus register map.
-    #[error("Modbus: {0}")]
-    Modbus(String),
+    #[error(transparent)]
+    Segments(#[from] SegmentError),
     /// The Modbus transport.
     #[error(transparent)]
     ModbusStream(#[from] crate::transport::modbus::ModbusError),
-    /// The program or the drive settings cannot go to the CAN drives.
-    #[error("CAN: {0}")]
-    Can(String),
+    /// The profile's CAN drives or adapter, as a link.
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// The drives' settings make no session.
+    #[error(transparent)]
+    Settings(#[from] SettingError),
+    /// The simulated drives cannot be built for the machine.
+    #[error("the simulated drives: {0}")]
+    Drives(whirl_sim::canopen::BusError),
     /// The CAN transport.
     #[error(transparent)]
     CanStream(#[from] crate::transport::can::CanError),
+    /// A transport the simulator does not serve.
+    #[error(
+        "the simulated drives are reached through an slcan adapter, not a socketcan \
+         interface: dry-run with --transport can-slcan"
+    )]
+    Socketcan,
 }
 
 /// What the simulator side collects while it serves.
@@ -168,7 +194,7 @@ struct SimSide {
     last_answer: f64,
     /// Simulated times the first executed move started and the last one ended.
     motion: Option<(f64, f64)>,
-    alarms: Vec<AlarmReport>,
+    alarms: Vec<Alarm>,
     log_error: Option<LogError>,
 }
 
@@ -256,7 +282,7 @@ impl SimSide {
             ),
             Event::Alarm { alarm, breach, .. } => {
                 let code = u16::from(alarm.code());
-                self.alarms.push(AlarmReport {
+                self.alarms.push(Alarm {
                     code,
                     message: alarm_message(code).to_owned(),
                     detail: breach.as_ref().map(|b| b.message.clone()),
@@ -279,7 +305,7 @@ impl SimSide {
 
     /// The Δ guard stopped the simulated drives: reported as grbl's ALARM:64 is.
     fn breach(&mut self, breach: &whirl_sim::Breach) {
-        self.alarms.push(AlarmReport {
+        self.alarms.push(Alarm {
             code: 64,
             message: alarm_message(64).to_owned(),
             detail: Some(breach.message.clone()),
@@ -322,18 +348,58 @@ impl SimSide {
     }
 }
 
-/// Dry-runs `lines` (the program planned for `job` on `machine`) on the simulator, logging
-/// to `log`. `program` names it in the log and the report.
+/// Checks that `posted` can be dry-run on `machine` over `transport`, before anything is
+/// opened: the machine's limits, a transport the simulator serves, and for CAN the
+/// profile's drives and adapter. Gives the CAN drives and bit rate where they are needed.
+pub fn preflight(
+    machine: &MachineProfile,
+    posted: &Posted,
+    transport: TransportKind,
+) -> Result<Option<(DriveSettings, Bitrate)>, DryRunError> {
+    posted.check(machine)?;
+    match transport {
+        TransportKind::Can => Err(DryRunError::Socketcan),
+        // The adapter's port is the simulator's own; the drives are the profile's.
+        TransportKind::CanSlcan => Ok(Some(can_bus(machine)?)),
+        TransportKind::Serial | TransportKind::ModbusTcp | TransportKind::ModbusRtu => Ok(None),
+    }
+}
+
+/// Dry-runs `posted` (the program planned for `job` on `machine`, or one given for it) on
+/// the simulator over `options.transport`, logging to `log`; see the module docs. Its
+/// name names it in the log and the report.
 pub async fn dry_run(
     job: &Job,
     machine: &MachineProfile,
-    program: &str,
-    lines: Vec<String>,
+    posted: &Posted,
     options: DryRunOptions,
     log: &mut ExecLog,
 ) -> Result<DryRunReport, DryRunError> {
-    // Refused before the simulator exists, as a machine would be left untouched.
-    transport::check_program(&lines, machine).map_err(StreamError::from)?;
+    let can = preflight(machine, posted, options.transport)?;
+    match (options.transport, can) {
+        (TransportKind::ModbusTcp, _) => {
+            over_modbus(job, machine, posted, ModbusKind::Tcp, options, log).await
+        }
+        (TransportKind::ModbusRtu, _) => {
+            over_modbus(job, machine, posted, ModbusKind::Rtu, options, log).await
+        }
+        (_, Some((drives, bitrate))) => {
+            over_can(job, machine, posted, &drives, bitrate, options, log).await
+        }
+        _ => over_serial(job, machine, posted, options, log).await,
+    }
+}
+
+/// The dry run over a serial line: the controller behind a pseudo-terminal.
+async fn over_serial(
+    job: &Job,
+    machine: &MachineProfile,
+    posted: &Posted,
+    options: DryRunOptions,
+    log: &mut ExecLog,
+) -> Result<DryRunReport, DryRunError> {
+    let program = posted.name.as_str();
+    let lines = posted.lines.clone();
     let (mut controller, points) = guarded_controller(
         job,
         machine,
@@ -360,12 +426,13 @@ pub async fn dry_run(
         program: program.to_owned(),
         baud: Some(options.baud),
         no_progress_timeout: Some(options.stall_timeout),
-        on_progress: options.on_progress,
+        on_progress: options.progress,
+        commands: options.commands,
         ..StreamOptions::default()
     };
     let outcome: StreamOutcome = until_streamed(
         serve(master, &mut controller, serve_options, |e| sim.on_event(e)),
-        transport::stream_port(&device, options.baud, lines, stream_options, log),
+        stream_port(&device, options.baud, lines, stream_options, log),
     )
     .await?;
     drop(slave);
@@ -375,8 +442,8 @@ pub async fn dry_run(
         lines: total,
         acked: outcome.lines_acked,
         stop: match &outcome.ending {
-            transport::Ending::Completed => None,
-            transport::Ending::Stopped(reason) => Some(reason.to_string()),
+            Ending::Completed => None,
+            Ending::Stopped(reason) => Some(reason.to_string()),
             other => Some(other.to_string()),
         },
         link_utilization: link_utilization(
@@ -414,7 +481,7 @@ async fn until_streamed<T, E: Into<DryRunError>>(
 
 /// Which Modbus link a Modbus dry run uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ModbusKind {
+enum ModbusKind {
     /// Modbus TCP on a loopback port.
     Tcp,
     /// Modbus RTU over a pseudo-terminal.
@@ -431,25 +498,23 @@ pub const MODBUS_TIME_SCALE: f64 = 100.0;
 /// scale (a third of a second of wall time at 200×). The watchdog itself is tested apart.
 const DRY_RUN_WATCHDOG_MS: u16 = u16::MAX;
 
-/// Dry-runs `program` (planned for `job` on `machine`) through the Modbus register map:
-/// the simulator's register bank in front of the same simulated controller and Δ guard,
-/// served with tokio-modbus over TCP or RTU, and whirl's Modbus transport streaming to it.
-pub async fn dry_run_modbus(
+/// The dry run through the Modbus register map: the simulator's register bank in front of
+/// the same simulated controller and Δ guard, served with tokio-modbus over TCP or RTU,
+/// and whirl's Modbus transport streaming to it.
+async fn over_modbus(
     job: &Job,
     machine: &MachineProfile,
-    name: &str,
-    program: &crate::program::Program,
+    posted: &Posted,
     kind: ModbusKind,
     options: DryRunOptions,
     log: &mut ExecLog,
 ) -> Result<DryRunReport, DryRunError> {
+    let (name, program) = (posted.name.as_str(), &posted.program);
     use crate::transport::modbus::{stream_modbus, ModbusLink, ModbusOptions};
     use whirl_sim::modbus::serve::{serve_rtu, serve_tcp, ClockOptions};
     use whirl_sim::modbus::{Bank, BankOptions};
 
-    crate::program::limits::check_limits(program, machine)?;
-    let segments =
-        crate::post::modbus::segments(program).map_err(|e| DryRunError::Modbus(e.to_string()))?;
+    let segments = crate::post::modbus::segments(program)?;
     let total = segments.len();
     let (controller, points) = guarded_controller(job, machine, ControllerOptions::default())?;
     let bank = Bank::new(
@@ -469,6 +534,8 @@ pub async fn dry_run_modbus(
     let stream_options = ModbusOptions {
         clock_scale: scale,
         program: name.to_owned(),
+        on_progress: options.progress,
+        commands: options.commands,
         ..ModbusOptions::default()
     };
     let outcome = match kind {
@@ -511,7 +578,7 @@ pub async fn dry_run_modbus(
         // An alarm of the map's own (a refused slot, the watchdog) the controller did not
         // raise: the simulator's events have none for it.
         if sim.alarms.is_empty() {
-            sim.alarms.push(AlarmReport {
+            sim.alarms.push(Alarm {
                 code: alarm.code.code(),
                 message: alarm.to_string(),
                 detail: None,
@@ -525,7 +592,8 @@ pub async fn dry_run_modbus(
         stop: outcome
             .alarm
             .map(|a| a.to_string())
-            .or_else(|| outcome.failure.as_ref().map(ToString::to_string)),
+            .or_else(|| outcome.failure.as_ref().map(ToString::to_string))
+            .or_else(|| outcome.aborted.then(|| "aborted".to_owned())),
         // A TCP link has no byte rate to fill. An RTU line's: the exchanges' bit times
         // over what the line carries in the controller's time.
         link_utilization: match kind {
@@ -559,9 +627,9 @@ const CAN_SYNC_HOLD: Duration = Duration::from_secs(5);
 /// to the clear position would run its inserts through the blank.
 fn clear_start(program: &crate::program::Program) -> whirl_sim::Position {
     use crate::config::machine::Axis;
-    use crate::program::Pose;
+    use crate::program::Position;
     let x = program
-        .steps(Pose::known(0.0, 0.0, 0.0))
+        .steps(Position::known(0.0, 0.0, 0.0))
         .find(|step| step.action.target().is_some())
         .and_then(|step| step.to.get(Axis::X))
         .unwrap_or(0.0);
@@ -574,18 +642,8 @@ fn clear_start(program: &crate::program::Program) -> whirl_sim::Position {
 /// as the link and the simulator allow.
 const CAN_BOOT_TIME_SCALE: f64 = 1.0;
 
-/// The CAN drives of a dry run.
-pub struct CanDrives<'a> {
-    /// Their settings (the machine profile's `[connection.drives]`).
-    pub drives: &'a crate::config::connection::DriveSettings,
-    /// The bus's bit rate.
-    pub bitrate: crate::protocol::canopen::slcan::Bitrate,
-    /// Progress as the run goes, for a display.
-    pub on_progress: Option<crate::transport::can::CanProgressFn>,
-}
-
-/// Dry-runs `program` (planned for `job` on `machine`) on three simulated CiA 402 drives
-/// behind an slcan adapter on a pseudo-terminal, set as `can` says: whirl's CANopen
+/// The dry run on three simulated CiA 402 drives behind an slcan adapter on a
+/// pseudo-terminal, set as the profile's `drives` and `bitrate` say: whirl's CANopen
 /// master streams the set-points through the adapter in lockstep with the drives' SYNC
 /// clock ([`crate::transport::can::CanClock::SyncLocked`]), and the Δ guard judges the
 /// cycles the drives executed, merged into the straight stretches they make up
@@ -593,26 +651,24 @@ pub struct CanDrives<'a> {
 ///
 /// The report counts set-points as its lines (`lines`, `lines_acked`: sent), and gives the
 /// CAN bus's load as `link_utilization`, at the adapter's bit rate, without stuff bits.
-pub async fn dry_run_can(
+async fn over_can(
     job: &Job,
     machine: &MachineProfile,
-    name: &str,
-    program: &crate::program::Program,
-    can: CanDrives<'_>,
+    posted: &Posted,
+    drives: &DriveSettings,
+    bitrate: Bitrate,
+    options: DryRunOptions,
     log: &mut ExecLog,
 ) -> Result<DryRunReport, DryRunError> {
     use crate::transport::can::{stream_can, CanClock, CanLink, CanOptions};
-    let CanDrives {
-        drives,
-        bitrate,
-        on_progress,
-    } = can;
     use whirl_sim::canopen::serve::{serve_slcan, ServeOptions};
     use whirl_sim::canopen::{Bus, BusConfig, BusEvent};
 
-    crate::program::limits::check_limits(program, machine)?;
-    let settings = |e: crate::config::connection::SettingError| DryRunError::Can(e.to_string());
-    let mut session = SessionConfig::for_drives(drives).map_err(settings)?;
+    let (name, program) = (posted.name.as_str(), &posted.program);
+    let mut session = SessionConfig {
+        hold_ramp: machine.stop_time(),
+        ..SessionConfig::for_drives(drives)?
+    };
     // Until the first SYNC the master and the simulated drives both run on the wall clock
     // of one host, which may pause either for longer than a bus ever would: such a pause
     // must not read as a dead drive. From the first SYNC on, heartbeats are exact.
@@ -627,7 +683,7 @@ pub async fn dry_run_can(
         drives.period(),
         clear_start(program),
     ))
-    .map_err(|e| DryRunError::Can(e.to_string()))?;
+    .map_err(DryRunError::Drives)?;
     bus.set_guard(Box::new(MergedGuard::new(guard, counts_per_unit)));
     let bus = std::sync::Arc::new(std::sync::Mutex::new(bus));
     let (master, slave) = tokio_serial::SerialStream::pair().map_err(DryRunError::Pty)?;
@@ -645,7 +701,8 @@ pub async fn dry_run_can(
         clock: CanClock::SyncLocked,
         answer_timeout: Duration::from_secs(5),
         program: name.to_owned(),
-        on_progress,
+        on_progress: options.progress,
+        commands: options.commands,
     };
     let serve_options = ServeOptions {
         time_scale: CAN_BOOT_TIME_SCALE,

@@ -25,7 +25,7 @@ use crate::geometry::profile::surface_normal;
 use crate::geometry::profile::Profile;
 use crate::judge::svg::{Plot, Series};
 use crate::plan::table::Table;
-use crate::program::{Move, Pose as GPose, Program};
+use crate::program::{Move, Position, Program};
 use glam::{DVec2, DVec3};
 use serde::Serialize;
 use std::f64::consts::TAU;
@@ -140,7 +140,7 @@ impl Motion {
     /// The motion a controller executes for `program`, from the first fully known position.
     pub fn new(program: &Program) -> Result<Motion, VerifyError> {
         let mut motion = Motion::empty();
-        for step in program.steps(GPose::UNKNOWN) {
+        for step in program.steps(Position::UNKNOWN) {
             if !matches!(
                 step.action,
                 Move::Rapid { .. } | Move::Feed { .. } | Move::Linked { .. }

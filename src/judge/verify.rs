@@ -1,7 +1,7 @@
 //! `whirl verify`: a program, as text, measured against its job's groove by the swept-volume
 //! engine ([`crate::judge::measure`]), independently of how it was planned.
 
-use crate::config::job::{Job, JobError};
+use crate::config::job::Job;
 use crate::config::machine::MachineProfile;
 use crate::geometry::linkage::Linkage;
 use crate::judge::measure::{Measurement, Motion, PointError, Target, VerifyError};
@@ -45,9 +45,6 @@ pub struct VerifiedReport<'a> {
 /// Why a program could not be measured.
 #[derive(Debug, thiserror::Error)]
 pub enum CheckError {
-    /// The job.
-    #[error(transparent)]
-    Job(#[from] JobError),
     /// The program text.
     #[error("program: {0}")]
     Parse(#[from] ParseError),
@@ -97,14 +94,13 @@ pub fn verify(
 
 /// `job`'s groove over its formed length, as the engine measures it.
 pub fn target(job: &Job) -> Result<Target, CheckError> {
-    let profile = job.profile()?;
     let linkage = Linkage {
         p: job.p(),
-        ring: job.ring(&profile),
+        ring: job.ring(),
     };
     let z_range = (job.groove.z_start, job.groove.z_start + job.groove.length);
     Ok(Target::new(
-        profile,
+        job.profile.clone(),
         linkage,
         job.groove.starts,
         z_range,

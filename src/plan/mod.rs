@@ -11,7 +11,7 @@ pub mod scallop;
 pub mod segment;
 pub mod table;
 
-use crate::config::job::{Job, JobError};
+use crate::config::job::Job;
 use crate::config::machine::MachineProfile;
 use crate::geometry::linkage::{Linkage, Ring, Whirling};
 use crate::geometry::profile::{ConcaveStretch, Profile};
@@ -83,9 +83,6 @@ pub struct Report {
 /// Why a job cannot be planned.
 #[derive(Debug, thiserror::Error)]
 pub enum PlanError {
-    /// The job file.
-    #[error(transparent)]
-    Job(#[from] JobError),
     /// Concave stretches the nose cannot follow.
     #[error("{}", concave_message(.0, *.1))]
     Concave(Vec<ConcaveStretch>, f64),
@@ -166,27 +163,27 @@ fn concave_message(stretches: &[ConcaveStretch], nose: f64) -> String {
 
 /// Plan `job` for `machine`.
 pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
-    let profile = job.profile()?;
+    let profile = &job.profile;
     let p = job.p();
     let nose = job.tool.nose_radius;
     let concave = profile.concave_stretches(p, nose);
     if !concave.is_empty() {
         return Err(PlanError::Concave(concave, nose));
     }
-    let ring = job.ring(&profile);
+    let ring = job.ring();
     let linkage = Linkage { p, ring };
     let (_, rho_max) = profile.radius_range();
     let x_clear = clear_x(&ring, rho_max)?;
     let delta = job.cut.delta;
     let tolerance = TABLE_SHARE * delta;
-    let table = Table::build(&profile, &linkage, tolerance).map_err(|cause| PlanError::Table {
+    let table = Table::build(profile, &linkage, tolerance).map_err(|cause| PlanError::Table {
         cause,
-        hint: angle_hint(&profile, &linkage, job.groove.starts),
+        hint: angle_hint(profile, &linkage, job.groove.starts),
     })?;
-    interference::check(&profile, &table, &linkage, job.groove.starts, delta / 10.0).map_err(
+    interference::check(profile, &table, &linkage, job.groove.starts, delta / 10.0).map_err(
         |cause| PlanError::Interference {
             cause,
-            hint: angle_hint(&profile, &linkage, job.groove.starts),
+            hint: angle_hint(profile, &linkage, job.groove.starts),
         },
     )?;
 

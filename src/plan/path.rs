@@ -141,7 +141,7 @@ mod tests {
     use super::*;
     use crate::geometry::linkage::{Contact, Pose as LinkagePose};
     use crate::plan::table::Sample;
-    use crate::program::Pose;
+    use crate::program::Position;
     use glam::DVec2;
     use std::f64::consts::PI;
 
@@ -199,7 +199,7 @@ mod tests {
             }
         );
         // 10 turns: C rises steadily to 3600°, written as it is.
-        let steps: Vec<_> = path.program.steps(Pose::UNKNOWN).collect();
+        let steps: Vec<_> = path.program.steps(Position::UNKNOWN).collect();
         let end = steps[n - 1].to.c.unwrap();
         assert!((end - 3600.0).abs() < 1e-9, "{end}");
         let c_rises = steps.windows(2).all(|w| match (w[0].to.c, w[1].to.c) {

@@ -69,7 +69,7 @@ use crate::config::connection::DriveSettings;
 use crate::config::machine::Axis;
 use crate::config::machine::{Dialect, MachineProfile};
 use crate::program::timing::MoveTime;
-use crate::program::{Move, Pose, Program};
+use crate::program::{Move, Position, Program};
 
 /// The largest count magnitude computed exactly: 2⁵³, where f64 stops holding every
 /// integer.
@@ -285,7 +285,7 @@ pub fn unwrap_near(wire: i32, near: i64) -> i64 {
 /// `config`'s cycle; see the module docs.
 pub fn sample(
     program: &Program,
-    start: Pose,
+    start: Position,
     config: &SampleConfig,
 ) -> Result<SetPoints, SampleError> {
     config.check()?;
@@ -363,7 +363,7 @@ pub fn sample(
             Move::Rapid { .. } | Move::Feed { .. } | Move::Linked { .. } => {}
         }
         // A known start keeps every axis known through `steps`.
-        let units = |pose: Pose| Axis::ALL.map(|a| pose.get(a).expect("a known start"));
+        let units = |pose: Position| Axis::ALL.map(|a| pose.get(a).expect("a known start"));
         let (from, to) = (units(step.from), units(step.to));
         if let Some(slot) = (0..3).find(|&i| !to[i].is_finite()) {
             let axis = Axis::ALL[slot];
@@ -533,7 +533,7 @@ mod tests {
     #[test]
     fn set_points_lie_on_the_straight_segments() {
         let config = config();
-        let start = Pose::known(0.0, 0.0, 0.0);
+        let start = Position::known(0.0, 0.0, 0.0);
         let program = job();
         let sp = sample(&program, start, &config).unwrap();
         let scale = config.counts_per_unit;
@@ -580,7 +580,7 @@ mod tests {
     #[test]
     fn consecutive_set_points_stay_within_max_rate_times_period() {
         let config = config();
-        let sp = sample(&job(), Pose::known(0.0, 0.0, 0.0), &config).unwrap();
+        let sp = sample(&job(), Position::known(0.0, 0.0, 0.0), &config).unwrap();
         let period = config.period.as_secs_f64();
         let limit: [f64; 3] =
             std::array::from_fn(|i| config.max_rate[i] / 60.0 * period * config.counts_per_unit[i]);
@@ -614,7 +614,7 @@ mod tests {
                 ..config()
             };
             let period = config.period.as_secs_f64();
-            let start = Pose::known(0.0, 0.0, 0.0);
+            let start = Position::known(0.0, 0.0, 0.0);
             let sp = sample(&job(), start, &config).unwrap();
             let program = job();
             let steps: Vec<Step<'_>> = program.steps(start).collect();
@@ -646,7 +646,7 @@ mod tests {
             ..config()
         };
         let c0 = 700_000.0;
-        let start = Pose::known(30.0, 0.0, c0);
+        let start = Position::known(30.0, 0.0, c0);
         // Two turns in 0.01 min each, the second a thousandth of a degree short.
         let program = program(vec![
             linked(30.0, 0.5, c0 + 360.0, 0.01),
@@ -690,7 +690,7 @@ mod tests {
             linked(10.0, 0.0, 0.0, 0.1),
             linked(20.0, 0.0, 0.0, 0.001),
         ]);
-        let sp = sample(&program, Pose::known(0.0, 0.0, 0.0), &config).unwrap();
+        let sp = sample(&program, Position::known(0.0, 0.0, 0.0), &config).unwrap();
         assert!(!sp.moves[0].slowed);
         assert!(sp.moves[1].slowed);
         assert!((sp.moves[0].duration - 6.0).abs() < 1e-9);
@@ -714,14 +714,14 @@ mod tests {
             feed(Some(3.0), Some(4.0), None, 60.0),
             feed(None, None, Some(90.0), 1800.0),
         ]);
-        let sp = sample(&apart, Pose::known(0.0, 0.0, 0.0), &config).unwrap();
+        let sp = sample(&apart, Position::known(0.0, 0.0, 0.0), &config).unwrap();
         assert!((sp.moves[0].duration - 5.0).abs() < 1e-9);
         assert!((sp.moves[1].duration - 3.0).abs() < 1e-9);
         assert_eq!(sp.points.len(), 2000);
         // X 1 mm with C 1° at F100, shared by the controller's rule: LinuxCNC runs F along
         // X (0.6 s), grbl along the length of both (√2 · 0.6 s).
         let mixed = program(vec![feed(Some(1.0), None, Some(1.0), 100.0)]);
-        let start = Pose::known(0.0, 0.0, 0.0);
+        let start = Position::known(0.0, 0.0, 0.0);
         let linuxcnc = sample(&mixed, start, &config).unwrap();
         assert!((linuxcnc.moves[0].duration - 0.6).abs() < 1e-9);
         let grbl = SampleConfig {
@@ -736,7 +736,7 @@ mod tests {
     #[test]
     fn spindle_moves_are_marks_with_a_spin_up_hold_or_refused() {
         let config = config();
-        let sp = sample(&job(), Pose::known(0.0, 0.0, 0.0), &config).unwrap();
+        let sp = sample(&job(), Position::known(0.0, 0.0, 0.0), &config).unwrap();
         // The rapid in takes 13.45 mm / 50 mm/s = 0.269 s, 68 cycles of 4 ms (0.272 s):
         // M3 is due once cycle 68 is sent, and the motion holds 500 ms, 125 cycles, from
         // there.
@@ -769,12 +769,12 @@ mod tests {
             spin_up: None,
             ..config.clone()
         };
-        let err = sample(&job(), Pose::known(0.0, 0.0, 0.0), &refuse).unwrap_err();
+        let err = sample(&job(), Position::known(0.0, 0.0, 0.0), &refuse).unwrap_err();
         assert_eq!(err, SampleError::Spindle { index: 2 });
         assert!(err.to_string().starts_with("move 2 (not a file line)"));
         let off = program(vec![Move::SpindleOff]);
         assert_eq!(
-            sample(&off, Pose::known(0.0, 0.0, 0.0), &refuse),
+            sample(&off, Position::known(0.0, 0.0, 0.0), &refuse),
             Err(SampleError::Spindle { index: 0 })
         );
         // A zero spin-up marks without holding.
@@ -782,7 +782,7 @@ mod tests {
             spin_up: Some(Duration::ZERO),
             ..config
         };
-        let sp = sample(&job(), Pose::known(0.0, 0.0, 0.0), &none).unwrap();
+        let sp = sample(&job(), Position::known(0.0, 0.0, 0.0), &none).unwrap();
         assert!(sp.moves.iter().all(|m| m.index != 2));
         assert_eq!(sp.marks.len(), 2);
     }
@@ -790,21 +790,21 @@ mod tests {
     #[test]
     fn an_unknown_or_broken_start_is_refused() {
         let config = config();
-        let err = sample(&job(), Pose::UNKNOWN, &config).unwrap_err();
+        let err = sample(&job(), Position::UNKNOWN, &config).unwrap_err();
         assert!(matches!(err, SampleError::Start { axis: Axis::X, .. }));
         assert!(err.to_string().starts_with("start X: not known"));
-        let partly = Pose {
+        let partly = Position {
             c: None,
-            ..Pose::known(0.0, 0.0, 0.0)
+            ..Position::known(0.0, 0.0, 0.0)
         };
         assert!(matches!(
             sample(&job(), partly, &config),
             Err(SampleError::Start { axis: Axis::C, .. })
         ));
-        let err = sample(&job(), Pose::known(0.0, f64::NAN, 0.0), &config).unwrap_err();
+        let err = sample(&job(), Position::known(0.0, f64::NAN, 0.0), &config).unwrap_err();
         assert_eq!(err.to_string(), "start Z: NaN is not finite");
         // Outside what a linear axis's INTEGER32 holds: 300 m at 10 000 counts a mm.
-        let err = sample(&job(), Pose::known(300_000.0, 0.0, 0.0), &config).unwrap_err();
+        let err = sample(&job(), Position::known(300_000.0, 0.0, 0.0), &config).unwrap_err();
         assert_eq!(
             err,
             SampleError::Range {
@@ -825,7 +825,7 @@ mod tests {
     #[test]
     fn impossible_moves_are_refused_by_index() {
         let config = config();
-        let start = Pose::known(0.0, 0.0, 0.0);
+        let start = Position::known(0.0, 0.0, 0.0);
         let cases = [
             (
                 linked(1.0, 0.0, 0.0, 0.0),
@@ -885,7 +885,7 @@ mod tests {
 
     #[test]
     fn bad_configurations_are_refused() {
-        let start = Pose::known(0.0, 0.0, 0.0);
+        let start = Position::known(0.0, 0.0, 0.0);
         let cases = [
             (
                 SampleConfig {
@@ -929,7 +929,7 @@ mod tests {
         let config = config();
         let sp = sample(
             &program(vec![Move::Comment("nothing".into())]),
-            Pose::known(1.0, 2.0, 3.0),
+            Position::known(1.0, 2.0, 3.0),
             &config,
         )
         .unwrap();

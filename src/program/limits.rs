@@ -4,7 +4,7 @@
 use thiserror::Error;
 
 use super::timing::feed_speeds;
-use super::{Move, Pose, Program};
+use super::{Move, Position, Program};
 use crate::config::machine::{Axis, MachineProfile};
 
 /// An end of an axis' travel.
@@ -145,7 +145,7 @@ impl LimitError {
 ///
 /// Returns the first violation.
 pub fn check_limits(program: &Program, profile: &MachineProfile) -> Result<(), LimitError> {
-    for step in program.steps(Pose::UNKNOWN) {
+    for step in program.steps(Position::UNKNOWN) {
         let index = step.index;
         let invalid = |problem: String| LimitError::InvalidMove { index, problem };
         match *step.action {
@@ -233,9 +233,9 @@ pub fn check_limits(program: &Program, profile: &MachineProfile) -> Result<(), L
 /// Δ per axis of a move (zero for axes the move leaves alone); an axis the move names
 /// but that has no known start is [`LimitError::Unpositioned`].
 fn axis_deltas(
-    from: &Pose,
-    to: &Pose,
-    target: &Pose,
+    from: &Position,
+    to: &Position,
+    target: &Position,
     index: usize,
 ) -> Result<[f64; 3], LimitError> {
     let mut delta = [0.0; 3];

@@ -72,10 +72,10 @@ pub enum Move {
 impl Move {
     /// The target of a motion, with `None` for axes it leaves alone; `None` for moves that
     /// do not move the machine.
-    pub fn target(&self) -> Option<Pose> {
+    pub fn target(&self) -> Option<Position> {
         match *self {
-            Move::Rapid { x, z, c } | Move::Feed { x, z, c, .. } => Some(Pose { x, z, c }),
-            Move::Linked { x, z, c, .. } => Some(Pose::known(x, z, c)),
+            Move::Rapid { x, z, c } | Move::Feed { x, z, c, .. } => Some(Position { x, z, c }),
+            Move::Linked { x, z, c, .. } => Some(Position::known(x, z, c)),
             Move::Comment(_) | Move::SpindleOn { .. } | Move::SpindleOff => None,
         }
     }
@@ -84,7 +84,7 @@ impl Move {
 /// A machine position, axis by axis; `None` where it is not known (before the program
 /// has positioned that axis, when the start was not given).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Pose {
+pub struct Position {
     /// X, mm (radius).
     pub x: Option<f64>,
     /// Z, mm.
@@ -93,18 +93,18 @@ pub struct Pose {
     pub c: Option<f64>,
 }
 
-impl Pose {
+impl Position {
     /// Nothing known: where a program starts when the caller does not know the machine's
     /// position.
-    pub const UNKNOWN: Pose = Pose {
+    pub const UNKNOWN: Position = Position {
         x: None,
         z: None,
         c: None,
     };
 
     /// A fully known position.
-    pub fn known(x: f64, z: f64, c: f64) -> Pose {
-        Pose {
+    pub fn known(x: f64, z: f64, c: f64) -> Position {
+        Position {
             x: Some(x),
             z: Some(z),
             c: Some(c),
@@ -132,9 +132,9 @@ pub struct Program {
 impl Program {
     /// Walks the program move by move, giving each move's start and end position.
     ///
-    /// `start` is where the machine is when the program starts ([`Pose::UNKNOWN`] when
+    /// `start` is where the machine is when the program starts ([`Position::UNKNOWN`] when
     /// that is not known: an axis then becomes known at the first move that positions it).
-    pub fn steps(&self, start: Pose) -> Steps<'_> {
+    pub fn steps(&self, start: Position) -> Steps<'_> {
         Steps {
             moves: self.moves.iter().enumerate(),
             position: start,
@@ -150,16 +150,16 @@ pub struct Step<'a> {
     /// The move.
     pub action: &'a Move,
     /// Position before the move.
-    pub from: Pose,
+    pub from: Position,
     /// Position after the move (equal to `from` for moves that do not move the machine).
-    pub to: Pose,
+    pub to: Position,
 }
 
 /// Iterator over the [`Step`]s of a program; see [`Program::steps`].
 #[derive(Debug, Clone)]
 pub struct Steps<'a> {
     moves: std::iter::Enumerate<std::slice::Iter<'a, Move>>,
-    position: Pose,
+    position: Position,
 }
 
 impl<'a> Iterator for Steps<'a> {
@@ -213,9 +213,9 @@ mod tests {
                 },
             ],
         };
-        let steps: Vec<Step<'_>> = program.steps(Pose::known(9.0, 0.0, 45.0)).collect();
-        assert_eq!(steps[0].to, Pose::known(9.0, 5.0, 45.0));
-        assert_eq!(steps[1].to, Pose::known(1.0, 5.0, 45.0));
+        let steps: Vec<Step<'_>> = program.steps(Position::known(9.0, 0.0, 45.0)).collect();
+        assert_eq!(steps[0].to, Position::known(9.0, 5.0, 45.0));
+        assert_eq!(steps[1].to, Position::known(1.0, 5.0, 45.0));
     }
 
     #[test]
@@ -236,18 +236,18 @@ mod tests {
                 },
             ],
         };
-        let steps: Vec<Step<'_>> = program.steps(Pose::UNKNOWN).collect();
-        assert_eq!(steps[0].from, Pose::UNKNOWN);
+        let steps: Vec<Step<'_>> = program.steps(Position::UNKNOWN).collect();
+        assert_eq!(steps[0].from, Position::UNKNOWN);
         assert_eq!(
             steps[0].to,
-            Pose {
+            Position {
                 x: Some(10.0),
-                ..Pose::UNKNOWN
+                ..Position::UNKNOWN
             }
         );
         // The spindle moves nothing.
         assert_eq!(steps[1].from, steps[1].to);
-        assert_eq!(steps[2].to, Pose::known(10.0, 2.0, 720.0));
+        assert_eq!(steps[2].to, Position::known(10.0, 2.0, 720.0));
         assert_eq!(steps[2].index, 2);
     }
 

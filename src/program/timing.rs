@@ -2,7 +2,7 @@
 //! CANopen set-points), with the controller's rule for a feed shared between linear and
 //! rotary axes.
 
-use super::{Move, Pose, Program};
+use super::{Move, Position, Program};
 use crate::config::machine::{Axis, Dialect, MachineProfile};
 
 /// Axis speeds of a feed move, per minute, under the controller's rule for sharing a feed
@@ -94,7 +94,7 @@ impl MoveTime {
 pub fn cycle_time_s(program: &Program, profile: &MachineProfile) -> f64 {
     let max_rate = Axis::ALL.map(|axis| profile.max_rate(axis));
     let mut minutes = 0.0;
-    for step in program.steps(Pose::UNKNOWN) {
+    for step in program.steps(Position::UNKNOWN) {
         let delta: [f64; 3] = std::array::from_fn(|slot| {
             let axis = Axis::ALL[slot];
             match (step.from.get(axis), step.to.get(axis)) {

@@ -32,9 +32,11 @@
 //! configuration, enable, spindle marks, emergencies, the stop and its reason), not the
 //! cycles, which the simulator's execution record logs as moves.
 
+use super::control::{self, Commands};
+use super::progress::{Progress, ProgressFn, Unit};
 use crate::log::{self, ExecLog, LogError};
 use crate::post::setpoints::{sample, SampleConfig, SampleError, SetPoints};
-use crate::program::{Pose, Program};
+use crate::program::{Position, Program};
 use crate::protocol::canopen::cia301::{NodeId, SdoClient, SdoDone};
 use crate::protocol::canopen::cia402::object;
 use crate::protocol::canopen::session::{Event, Phase, Session, SessionConfig, StopReason};
@@ -103,20 +105,6 @@ pub enum CanClock {
     SyncLocked,
 }
 
-/// Where a run is, for a display.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CanProgress {
-    /// Set-points sent.
-    pub sent: usize,
-    /// Set-points of the program.
-    pub total: usize,
-    /// The machine time the set-points not yet sent will take.
-    pub left: Duration,
-}
-
-/// Called as a run goes: about once a second of machine time, and at its end.
-pub type CanProgressFn = Box<dyn FnMut(&CanProgress) + Send>;
-
 /// How [`stream_can`] runs.
 pub struct CanOptions {
     /// The master's settings: nodes, heartbeat, windows, timeouts.
@@ -130,8 +118,11 @@ pub struct CanOptions {
     pub answer_timeout: Duration,
     /// What is run, for the log.
     pub program: String,
-    /// Progress as the run goes, for a display.
-    pub on_progress: Option<CanProgressFn>,
+    /// Told how far the run is: about once a second of machine time, and at its end.
+    pub on_progress: Option<ProgressFn>,
+    /// The caller's hold, resume and abort: the set-points slowed along the path to a
+    /// stand and brought back up to speed, or a quick stop.
+    pub commands: Option<Commands>,
 }
 
 /// How a run ended.
@@ -498,7 +489,7 @@ pub async fn stream_can(
     let start: [f64; 3] = std::array::from_fn(|k| counts[k] as f64 / scale[k]);
     let setpoints: SetPoints = sample(
         program,
-        Pose::known(start[0], start[1], start[2]),
+        Position::known(start[0], start[1], start[2]),
         &options.sample,
     )?;
     let period = setpoints.period;
@@ -544,7 +535,9 @@ pub async fn stream_can(
         commands: 0,
         acks: 0,
         in_flight: VecDeque::new(),
-        progress: Progress {
+        caller: options.commands.take(),
+        progress: Told {
+            started: Instant::now(),
             report: options.on_progress.take(),
             every: (Duration::from_secs(1).as_nanos() / period.as_nanos().max(1)).max(1) as usize,
             last: 0,
@@ -582,27 +575,36 @@ struct Run {
     /// With a SYNC-locked clock, for each cycle sent and not yet acknowledged: the
     /// commands sent up to its SYNC.
     in_flight: VecDeque<u64>,
-    progress: Progress,
+    progress: Told,
+    /// The caller's hold, resume and abort.
+    caller: Option<Commands>,
 }
 
 /// The caller's progress display, told every `every` set-points.
-struct Progress {
-    report: Option<CanProgressFn>,
+struct Told {
+    report: Option<ProgressFn>,
     every: usize,
     /// Set-points sent when it was last told.
     last: usize,
     period: Duration,
+    started: Instant,
 }
 
-impl Progress {
+impl Told {
     /// Tells the display, (sent, total) as [`Session::progress`] gives them.
     fn tell(&mut self, (sent, total): (usize, usize)) {
         if let Some(report) = self.report.as_mut() {
             self.last = sent;
-            report(&CanProgress {
-                sent,
+            report(&Progress {
+                unit: Unit::SetPoints,
+                done: sent,
                 total,
-                left: self.period * (total - sent) as u32,
+                line: None,
+                elapsed: self.started.elapsed(),
+                left: Some(self.period * (total - sent) as u32),
+                state: None,
+                position: None,
+                finishing: sent == total,
             });
         }
     }
@@ -637,6 +639,7 @@ impl Run {
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
         loop {
             let now = self.clock.now();
+            self.obey(session, now, log)?;
             let frames = session.poll(now);
             if !frames.is_empty() {
                 self.outcome.bytes_written += port.send(name, &frames).await?;
@@ -670,6 +673,40 @@ impl Run {
                 _ = tick.tick() => {}
             }
         }
+    }
+
+    /// The caller's commands that have come: a hold slows the set-points along the path
+    /// to a stand, a resume brings them back up to speed, an abort is a quick stop.
+    fn obey(
+        &mut self,
+        session: &mut Session,
+        now: Duration,
+        log: &mut ExecLog,
+    ) -> Result<(), CanError> {
+        while let Some(command) = self.caller.as_mut().and_then(Commands::try_next) {
+            let text = match command {
+                control::Command::Hold => {
+                    session.hold();
+                    "hold requested"
+                }
+                control::Command::Resume => {
+                    session.resume();
+                    "resume requested"
+                }
+                control::Command::Abort => {
+                    session.stop(now);
+                    "abort requested: quick stop"
+                }
+            };
+            let t = self.clock.started.elapsed().as_secs_f64();
+            log.write(
+                t,
+                log::Event::Message {
+                    text: text.to_owned(),
+                },
+            )?;
+        }
+        Ok(())
     }
 
     /// Reads until at most [`LOCKSTEP_WINDOW`] cycles are unacknowledged.

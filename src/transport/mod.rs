@@ -1,12 +1,17 @@
-//! The async edges: where a sans-I/O protocol ([`crate::protocol::grbl`]) meets a port, a task
+//! The async edges: where a sans-I/O protocol ([`crate::protocol`]) meets a port, a task
 //! and a clock.
 //!
 //! A transport moves bytes and tells the time, and nothing else: every decision about what
-//! to send, how the answers pair with the lines and when the stream has stopped is the
+//! to send, how the answers pair with the requests and when the run has stopped is the
 //! protocol's, so the rules stay testable byte for byte and the same code drives a real
 //! controller and the simulator. What a transport adds is the run around the protocol: the
-//! executed-path log ([`crate::log`]), the caller's feed hold / resume / reset, a
-//! progress report, a watchdog for a silent controller, and the link's measured use.
+//! executed-path log ([`crate::log`]), the caller's hold / resume / abort, a progress
+//! report, a watchdog for a silent controller, and the link's measured use.
+//!
+//! [`stream()`] is the one entry a front end needs: a [`Posted`] program, the [`Link`] a
+//! machine profile's `[connection]` names ([`Link::resolve`]), the [`Commands`] half of a
+//! [`control()`] pair and a [`ProgressFn`]; it ends in an [`Outcome`]. Below it, one module a
+//! transport:
 //!
 //! - [`serial`]: a G-code program streamed to a grbl/grblHAL controller over a serial line
 //!   (tokio-serial), or over any byte stream ([`serial::stream`]), so tests and the dry run
@@ -17,10 +22,14 @@
 //!   or a socketcan interface.
 
 pub mod can;
+pub mod control;
+pub mod link;
 pub mod modbus;
+pub mod progress;
+pub mod run;
 pub mod serial;
 
-pub use serial::{
-    check_program, link_utilization, stream, stream_port, Command, Ending, PreflightError,
-    ProgressFn, StatusAxes, StreamError, StreamOptions, StreamOutcome, StreamProgress,
-};
+pub use control::{control, Command, Commands, Control};
+pub use link::{Link, LinkError, TransportKind};
+pub use progress::{Progress, ProgressFn, Unit};
+pub use run::{check_program, stream, Outcome, Posted, PreflightError, RunOptions, StreamError};

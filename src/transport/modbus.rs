@@ -12,6 +12,8 @@
 //! machine, the simulator's time scale in a dry run, so that status polls and watchdog
 //! writes keep their meaning in the controller's time.
 
+use super::control::{Command, Commands};
+use super::progress::{Progress, ProgressFn, Unit};
 use crate::log::{self, ExecLog, LogError};
 use crate::post::modbus::Segment;
 use crate::protocol::modbus::map::UNIT_ID;
@@ -60,7 +62,6 @@ impl std::fmt::Display for ModbusLink {
 }
 
 /// How a program is streamed over Modbus.
-#[derive(Debug, Clone)]
 pub struct ModbusOptions {
     /// The ring writer's settings (first sequence number, poll interval, retries).
     pub writer: WriterOptions,
@@ -78,6 +79,28 @@ pub struct ModbusOptions {
     pub program: String,
     /// The controller's unit id (slave address); the map's is 1.
     pub unit: u8,
+    /// The caller's hold, resume and abort: the map's `HOLD`, `RESUME` and `ABORT` edges,
+    /// written ahead of any slot.
+    pub commands: Option<Commands>,
+    /// Told how far the run is at every published segment and status read.
+    pub on_progress: Option<ProgressFn>,
+}
+
+impl std::fmt::Debug for ModbusOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ModbusOptions")
+            .field("writer", &self.writer)
+            .field("timeout", &self.timeout)
+            .field("backoff", &self.backoff)
+            .field("max_backoff", &self.max_backoff)
+            .field("max_reconnects", &self.max_reconnects)
+            .field("clock_scale", &self.clock_scale)
+            .field("program", &self.program)
+            .field("unit", &self.unit)
+            .field("commands", &self.commands.is_some())
+            .field("on_progress", &self.on_progress.is_some())
+            .finish()
+    }
 }
 
 impl Default for ModbusOptions {
@@ -91,6 +114,8 @@ impl Default for ModbusOptions {
             clock_scale: 1.0,
             program: String::new(),
             unit: UNIT_ID,
+            commands: None,
+            on_progress: None,
         }
     }
 }
@@ -100,6 +125,8 @@ impl Default for ModbusOptions {
 pub struct ModbusOutcome {
     /// Every segment executed and the controller reads done.
     pub completed: bool,
+    /// The caller aborted: the controller stopped and flushed its ring.
+    pub aborted: bool,
     /// Segments in the program.
     pub segments: usize,
     /// Segments published to the ring.
@@ -182,10 +209,16 @@ pub enum ModbusError {
 pub async fn stream_modbus(
     link: &ModbusLink,
     segments: Vec<Segment>,
-    options: ModbusOptions,
+    mut options: ModbusOptions,
     log: &mut ExecLog,
 ) -> Result<ModbusOutcome, ModbusError> {
     let total = segments.len();
+    let mut commands = options.commands.take();
+    let mut progress = Told::new(
+        &segments,
+        options.writer.first_sequence,
+        options.on_progress.take(),
+    );
     let mut writer = RingWriter::new(segments, options.writer.clone())?;
     let start = Instant::now();
     let t = |start: Instant| start.elapsed().as_secs_f64();
@@ -201,6 +234,7 @@ pub async fn stream_modbus(
     let mut ctx = Some(connect(link, &options).await?);
     let mut outcome = ModbusOutcome {
         completed: false,
+        aborted: false,
         segments: total,
         published: 0,
         alarm: None,
@@ -212,6 +246,28 @@ pub async fn stream_modbus(
     };
     let mut finished = false;
     while !finished {
+        while let Some(command) = commands.as_mut().and_then(Commands::try_next) {
+            let text = match command {
+                Command::Hold => {
+                    writer.hold();
+                    "feed hold requested"
+                }
+                Command::Resume => {
+                    writer.resume();
+                    "resume requested"
+                }
+                Command::Abort => {
+                    writer.abort();
+                    "abort requested"
+                }
+            };
+            log.write(
+                t(start),
+                log::Event::Message {
+                    text: text.to_owned(),
+                },
+            )?;
+        }
         let now = start.elapsed().mul_f64(options.clock_scale);
         match writer.poll(now) {
             Some(request) => {
@@ -283,6 +339,7 @@ pub async fn stream_modbus(
                 WriterEvent::Identified(_) => {}
                 WriterEvent::Published { sequence, slot } => {
                     outcome.published += 1;
+                    progress.published(outcome.published, start.elapsed());
                     log.write(
                         time,
                         log::Event::Sent {
@@ -291,16 +348,19 @@ pub async fn stream_modbus(
                         },
                     )?;
                 }
-                WriterEvent::Status(s) => log.write(
-                    time,
-                    log::Event::Status {
-                        state: format!("{:?}", s.state),
-                        pos: s.position(),
-                        blocks_free: None,
-                        rx_free: None,
-                        line: Some(u64::from(s.executed)),
-                    },
-                )?,
+                WriterEvent::Status(s) => {
+                    progress.status(&s, start.elapsed());
+                    log.write(
+                        time,
+                        log::Event::Status {
+                            state: format!("{:?}", s.state),
+                            pos: s.position(),
+                            blocks_free: None,
+                            rx_free: None,
+                            line: Some(u64::from(s.executed)),
+                        },
+                    )?
+                }
                 WriterEvent::Alarm(alarm) => {
                     outcome.alarm = Some(alarm);
                     log.write(
@@ -314,6 +374,10 @@ pub async fn stream_modbus(
                 }
                 WriterEvent::Done => {
                     outcome.completed = true;
+                    finished = true;
+                }
+                WriterEvent::Aborted => {
+                    outcome.aborted = true;
                     finished = true;
                 }
                 WriterEvent::Failed(error) => {
@@ -330,6 +394,72 @@ pub async fn stream_modbus(
         .or_else(|| outcome.failure.as_ref().map(ToString::to_string));
     end(log, t(start), outcome.completed, reason)?;
     Ok(outcome)
+}
+
+/// The caller's progress display: what it was last told, and the planned time of the
+/// segments still to run.
+struct Told {
+    report: Option<ProgressFn>,
+    progress: Progress,
+    first_sequence: u32,
+    /// `left[i]`: the planned time of the linked segments from segment `i` on, µs.
+    left: Vec<u64>,
+}
+
+impl Told {
+    fn new(segments: &[Segment], first_sequence: u32, report: Option<ProgressFn>) -> Told {
+        let mut left = vec![0u64; segments.len() + 1];
+        for (i, segment) in segments.iter().enumerate().rev() {
+            let own = match *segment {
+                Segment::Linked { duration_us, .. } => u64::from(duration_us),
+                _ => 0,
+            };
+            left[i] = left[i + 1] + own;
+        }
+        Told {
+            progress: Progress {
+                unit: Unit::Segments,
+                done: 0,
+                total: segments.len(),
+                line: None,
+                elapsed: Duration::ZERO,
+                left: Some(Duration::from_micros(left[0])),
+                state: None,
+                position: None,
+                finishing: false,
+            },
+            report,
+            first_sequence,
+            left,
+        }
+    }
+
+    fn published(&mut self, published: usize, elapsed: Duration) {
+        self.progress.done = published;
+        self.progress.finishing = published == self.progress.total;
+        self.tell(elapsed);
+    }
+
+    /// A status read: the state, the position, and the time left after the segment the
+    /// controller reports executing.
+    fn status(&mut self, status: &crate::protocol::modbus::map::Status, elapsed: Duration) {
+        self.progress.state = Some(format!("{:?}", status.state));
+        self.progress.position = Some(status.position());
+        if status.executed != 0 {
+            let index = status.executed.wrapping_sub(self.first_sequence) as usize;
+            if let Some(&left) = self.left.get(index + 1) {
+                self.progress.left = Some(Duration::from_micros(left));
+            }
+        }
+        self.tell(elapsed);
+    }
+
+    fn tell(&mut self, elapsed: Duration) {
+        if let Some(report) = self.report.as_mut() {
+            self.progress.elapsed = elapsed;
+            report(&self.progress);
+        }
+    }
 }
 
 /// The log's last event of a stream.

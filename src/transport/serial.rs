@@ -28,7 +28,7 @@
 //!   A hold (the caller's, or the controller in `Hold`, `Door` or `Tool`) is not a stall:
 //!   the clock restarts while it lasts.
 //! - **Failed**: a read or write error, or the controller closing the stream, is a
-//!   [`StreamError`] naming the port: nothing is known about what ran after that.
+//!   [`SerialError`] naming the port: nothing is known about what ran after that.
 //!
 //! Every run is logged between [`log::Event::Start`] and [`log::Event::End`]
 //! (also when it fails, as far as the log can still be written), with times in seconds
@@ -40,18 +40,17 @@ use std::time::Duration;
 
 use thiserror::Error;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, WriteHalf};
-use tokio::sync::mpsc;
 use tokio::time::{interval_at, sleep_until, Instant, Interval, MissedTickBehavior};
 use tokio_serial::SerialPortBuilderExt;
 use tracing::Instrument;
 
+use super::control::{Command, Commands};
+use super::progress::{Progress, ProgressFn, Unit};
+use super::run::{check_program, PreflightError};
 use crate::config::machine::MachineProfile;
 use crate::log::{self, ExecLog, LogError};
-use crate::post::gcode::parse::{read_program_with_lines, ParseError};
-use crate::program::limits::{check_limits, LimitError};
 use crate::protocol::grbl::{
-    self, Event, LineRef, MachineState, Progress, ResumePoint, Status, StopReason, Streamer,
-    StreamerConfig,
+    self, Event, LineRef, MachineState, ResumePoint, Status, StopReason, Streamer, StreamerConfig,
 };
 
 /// The transport's name in [`log::Event::Start`].
@@ -63,20 +62,6 @@ const FINAL_WRITE_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// Bytes read at once: a serial link delivers far less between two reads.
 const READ_CHUNK: usize = 1024;
-
-/// What the caller can ask for while a program streams, through
-/// [`StreamOptions::commands`]. Each goes out as a real-time byte at once, ahead of any
-/// line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Command {
-    /// Feed hold (`!`): decelerate and hold. Lines keep filling the buffer.
-    FeedHold,
-    /// Cycle start (`~`): resume after a feed hold.
-    Resume,
-    /// Soft reset (0x18): stop at once and drop the controller's buffers; the run ends with
-    /// [`StopReason::SoftReset`] and a resume point.
-    SoftReset,
-}
 
 /// Where X, Z and C sit in a status report's position vector, which lists the
 /// controller's configured axes in its own order.
@@ -100,49 +85,6 @@ impl Default for StatusAxes {
         }
     }
 }
-
-/// A snapshot for a progress display, handed to [`StreamOptions::on_progress`] whenever
-/// something happened. Plain values, so the CLI can render it with whatever it likes.
-#[derive(Debug, Clone, PartialEq)]
-pub struct StreamProgress {
-    /// Program lines sent in this run.
-    pub sent: usize,
-    /// Program lines acknowledged, counting those before the start line (an earlier run
-    /// did them), as [`Progress::acked`].
-    pub acked: usize,
-    /// Program lines.
-    pub total: usize,
-    /// The line executing now (0-based), if a status report's `Ln:` says so.
-    pub executing: Option<usize>,
-    /// Since the run started.
-    pub elapsed: Duration,
-    /// Bytes written to the port.
-    pub bytes_written: u64,
-    /// The controller's state in the last status report.
-    pub state: Option<MachineState>,
-    /// X, Z (mm) and C (degrees) in machine coordinates, from the last status report.
-    pub position: Option<[f64; 3]>,
-    /// Every line acknowledged; waiting for the motion to finish.
-    pub all_acked: bool,
-    /// Time left: from [`StreamOptions::line_durations`] if given, else the acknowledge
-    /// rate so far extrapolated (which runs ahead of the motion by the planner's depth).
-    pub eta: Option<Duration>,
-}
-
-impl StreamProgress {
-    /// `acked / total`, 0 to 1.
-    pub fn fraction(&self) -> f64 {
-        Progress {
-            acked: self.acked,
-            executing: self.executing,
-            total: self.total,
-        }
-        .fraction()
-    }
-}
-
-/// A progress callback; see [`StreamOptions::on_progress`].
-pub type ProgressFn = Box<dyn FnMut(&StreamProgress) + Send>;
 
 /// How [`stream`] runs.
 pub struct StreamOptions {
@@ -171,11 +113,11 @@ pub struct StreamOptions {
     pub machine: Option<MachineProfile>,
     /// Planned seconds of each program line, for the progress ETA.
     pub line_durations: Option<Vec<f64>>,
-    /// Feed hold, resume and soft reset from the caller while streaming. Dropping the
-    /// sender is not a command: the run goes on.
-    pub commands: Option<mpsc::Receiver<Command>>,
-    /// Called with a [`StreamProgress`] whenever something happened (no more often than
-    /// the controller talks). Keep it quick: it runs on the streaming task.
+    /// The caller's hold, resume and abort while streaming: a feed hold, a cycle start
+    /// and a soft reset, each a real-time byte sent at once, ahead of any line.
+    pub commands: Option<Commands>,
+    /// Told how far the run is whenever something happened (no more often than the
+    /// controller talks). Keep it quick: it runs on the streaming task.
     pub on_progress: Option<ProgressFn>,
 }
 
@@ -220,7 +162,7 @@ impl fmt::Debug for StreamOptions {
     }
 }
 
-/// How a run ended (when it did not fail; see [`StreamError`]).
+/// How a run ended (when it did not fail; see [`SerialError`]).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Ending {
     /// Every line acknowledged and, unless told not to wait, the motion finished.
@@ -295,26 +237,10 @@ impl StreamOutcome {
     }
 }
 
-/// Why a program failed the check before streaming.
-#[derive(Debug, Clone, PartialEq, Error)]
-pub enum PreflightError {
-    /// The program could not be read.
-    #[error("the program cannot be read: {0}")]
-    Parse(#[source] ParseError),
-    /// The program asks more than the machine allows.
-    #[error("line {line}: the program exceeds the machine's limits: {source}")]
-    Limits {
-        /// The program line (1-based) of the block that does.
-        line: usize,
-        /// What it asks.
-        source: LimitError,
-    },
-}
-
 /// Why a run failed. Stops the protocol defines (errors, alarms, resets) are not failures:
 /// they end in a [`StreamOutcome`].
 #[derive(Debug, Error)]
-pub enum StreamError {
+pub enum SerialError {
     /// The port could not be opened.
     #[error("cannot open {port}: {source}")]
     Open {
@@ -339,25 +265,13 @@ pub enum StreamError {
     },
     /// The program cannot be streamed as it is (a forbidden byte, a line too long).
     #[error("the program cannot be streamed: {0}")]
-    Program(#[from] grbl::StreamError),
+    Program(#[from] grbl::StreamerError),
     /// The program failed the machine check; nothing was sent.
     #[error(transparent)]
     Preflight(#[from] PreflightError),
     /// The executed-path log could not be written.
     #[error("executed-path log: {0}")]
     Log(#[from] LogError),
-}
-
-/// Checks a program against a machine's travel and speed limits, as it will be streamed:
-/// the lines parsed as one program ([`read_program_with_lines`], X words read as the profile's
-/// `x_mode` says), then [`check_limits`].
-pub fn check_program(lines: &[String], machine: &MachineProfile) -> Result<(), PreflightError> {
-    let (program, block_lines) = read_program_with_lines(&lines.join("\n"), machine.x_diameter())
-        .map_err(PreflightError::Parse)?;
-    check_limits(&program, machine).map_err(|source| PreflightError::Limits {
-        line: block_lines[source.index()],
-        source,
-    })
 }
 
 /// How busy a serial link was: `bytes` × 10 bits (8N1: a start bit, eight data bits, a
@@ -378,13 +292,13 @@ pub async fn stream_port(
     lines: Vec<String>,
     mut options: StreamOptions,
     log: &mut ExecLog,
-) -> Result<StreamOutcome, StreamError> {
+) -> Result<StreamOutcome, SerialError> {
     if let Some(machine) = options.machine.take() {
         check_program(&lines, &machine)?;
     }
     let port = tokio_serial::new(path, baud)
         .open_native_async()
-        .map_err(|source| StreamError::Open {
+        .map_err(|source| SerialError::Open {
             port: path.to_owned(),
             source,
         })?;
@@ -401,7 +315,7 @@ pub async fn stream<P: AsyncRead + AsyncWrite + Unpin>(
     lines: Vec<String>,
     mut options: StreamOptions,
     log: &mut ExecLog,
-) -> Result<StreamOutcome, StreamError> {
+) -> Result<StreamOutcome, SerialError> {
     if let Some(machine) = &options.machine {
         check_program(&lines, machine)?;
     }
@@ -490,8 +404,8 @@ impl Run<'_> {
         self.log.write(t, event)
     }
 
-    fn io_error(&self, source: std::io::Error) -> StreamError {
-        StreamError::Io {
+    fn io_error(&self, source: std::io::Error) -> SerialError {
+        SerialError::Io {
             port: self.port.clone(),
             source,
         }
@@ -501,8 +415,8 @@ impl Run<'_> {
         mut self,
         port: P,
         poll_interval: Option<Duration>,
-        commands: Option<mpsc::Receiver<Command>>,
-    ) -> Result<StreamOutcome, StreamError> {
+        commands: Option<Commands>,
+    ) -> Result<StreamOutcome, SerialError> {
         self.start = Instant::now();
         self.write_log(log::Event::Start {
             program: self.program.clone(),
@@ -544,8 +458,8 @@ impl Run<'_> {
         &mut self,
         port: P,
         poll_interval: Option<Duration>,
-        mut commands: Option<mpsc::Receiver<Command>>,
-    ) -> Result<Ending, StreamError> {
+        mut commands: Option<Commands>,
+    ) -> Result<Ending, SerialError> {
         let (mut reader, mut writer) = tokio::io::split(port);
         let mut out: Vec<u8> = Vec::new();
         let mut buffer = vec![0u8; READ_CHUNK];
@@ -585,7 +499,7 @@ impl Run<'_> {
                 read = reader.read(&mut buffer) => {
                     let n = read.map_err(|e| self.io_error(e))?;
                     if n == 0 {
-                        return Err(StreamError::Eof { port: self.port.clone() });
+                        return Err(SerialError::Eof { port: self.port.clone() });
                     }
                     self.bytes_read += n as u64;
                     self.streamer.receive(&buffer[..n]);
@@ -593,10 +507,7 @@ impl Run<'_> {
                 at = next_tick(&mut ticker) => {
                     self.streamer.poll(at.duration_since(self.start));
                 }
-                command = next_command(&mut commands) => match command {
-                    Some(command) => self.command(command)?,
-                    None => commands = None,
-                },
+                command = next_command(&mut commands) => self.command(command)?,
                 () = wait_until(deadline) => {
                     let after = self.timeout.unwrap_or_default();
                     tracing::warn!(seconds = after.as_secs_f64(), "no progress: feed hold");
@@ -617,7 +528,7 @@ impl Run<'_> {
         &mut self,
         writer: &mut WriteHalf<W>,
         out: &mut Vec<u8>,
-    ) -> Result<(), StreamError> {
+    ) -> Result<(), SerialError> {
         if out.is_empty() {
             return Ok(());
         }
@@ -632,10 +543,10 @@ impl Run<'_> {
         }
     }
 
-    fn command(&mut self, command: Command) -> Result<(), StreamError> {
+    fn command(&mut self, command: Command) -> Result<(), SerialError> {
         tracing::debug!(?command, "caller command");
         let text = match command {
-            Command::FeedHold => {
+            Command::Hold => {
                 self.streamer.feed_hold();
                 self.held_by_caller = true;
                 "feed hold requested"
@@ -645,7 +556,7 @@ impl Run<'_> {
                 self.held_by_caller = false;
                 "resume requested"
             }
-            Command::SoftReset => {
+            Command::Abort => {
                 self.streamer.soft_reset();
                 "soft reset requested"
             }
@@ -878,20 +789,19 @@ impl Run<'_> {
             }
             None => None,
         };
-        let snapshot = StreamProgress {
-            sent: self.sent,
-            acked: progress.acked,
+        let snapshot = Progress {
+            unit: Unit::Lines,
+            done: progress.acked,
             total: progress.total,
-            executing: progress.executing,
+            line: progress.executing,
             elapsed,
-            bytes_written: self.bytes_written,
-            state: self.last_status.as_ref().map(|s| s.state.clone()),
+            left: eta,
+            state: self.last_status.as_ref().map(state_name),
             position: self
                 .last_status
                 .as_ref()
                 .and_then(|s| machine_xzc(s, s.wco.as_deref().or(self.wco.as_deref()), self.axes)),
-            all_acked: self.all_acked_at.is_some(),
-            eta,
+            finishing: self.all_acked_at.is_some(),
         };
         callback(&snapshot);
     }
@@ -965,10 +875,10 @@ async fn next_tick(ticker: &mut Option<Interval>) -> Instant {
     }
 }
 
-/// The caller's next command; `None` once the sender is gone.
-async fn next_command(commands: &mut Option<mpsc::Receiver<Command>>) -> Option<Command> {
+/// The caller's next command, or never without any.
+async fn next_command(commands: &mut Option<Commands>) -> Command {
     match commands {
-        Some(commands) => commands.recv().await,
+        Some(commands) => commands.next().await,
         None => pending().await,
     }
 }
@@ -1102,7 +1012,7 @@ mod tests {
     }
 
     struct Run {
-        result: Result<StreamOutcome, StreamError>,
+        result: Result<StreamOutcome, SerialError>,
         fake: Fake,
         records: Vec<Record>,
     }
@@ -1344,7 +1254,7 @@ mod tests {
         let run = run(moves(20), options(), Fake::grblhal(1024), script).await;
         let error = run.result.unwrap_err();
         assert!(
-            matches!(&error, StreamError::Eof { port } if port == "/dev/ttyTEST"),
+            matches!(&error, SerialError::Eof { port } if port == "/dev/ttyTEST"),
             "{error:?}"
         );
         assert!(error.to_string().contains("/dev/ttyTEST"), "{error}");
@@ -1387,7 +1297,7 @@ mod tests {
 
     #[tokio::test(start_paused = true)]
     async fn the_caller_holds_resumes_and_resets() {
-        let (commands, receiver) = mpsc::channel(4);
+        let (control, receiver) = crate::transport::control();
         let script = Script {
             line_time: Duration::from_millis(100),
             ..Script::default()
@@ -1400,11 +1310,11 @@ mod tests {
         };
         let caller = tokio::spawn(async move {
             tokio::time::sleep(Duration::from_millis(500)).await;
-            commands.send(Command::FeedHold).await.unwrap();
+            assert!(control.hold());
             tokio::time::sleep(Duration::from_millis(500)).await;
-            commands.send(Command::Resume).await.unwrap();
+            assert!(control.resume());
             tokio::time::sleep(Duration::from_millis(500)).await;
-            commands.send(Command::SoftReset).await.unwrap();
+            assert!(control.abort());
         });
         let run = run(moves(40), options, Fake::grblhal(1024), script).await;
         caller.await.unwrap();
@@ -1461,7 +1371,7 @@ mod tests {
         assert!(
             matches!(
                 error,
-                StreamError::Preflight(PreflightError::Limits { line: 3, .. })
+                SerialError::Preflight(PreflightError::Limits { line: 3, .. })
             ),
             "{error:?}"
         );
@@ -1476,7 +1386,7 @@ mod tests {
         let seen = Arc::new(Mutex::new(Vec::new()));
         let sink = Arc::clone(&seen);
         let options = StreamOptions {
-            on_progress: Some(Box::new(move |p: &StreamProgress| {
+            on_progress: Some(Box::new(move |p: &Progress| {
                 sink.lock().unwrap().push(p.clone());
             })),
             ..options()
@@ -1489,14 +1399,14 @@ mod tests {
         assert!(run.result.unwrap().completed());
         let seen = seen.lock().unwrap();
         let last = seen.last().unwrap();
-        assert_eq!((last.acked, last.total, last.sent), (12, 12, 12));
-        assert!(last.all_acked);
+        assert_eq!((last.unit, last.done, last.total), (Unit::Lines, 12, 12));
+        assert!(last.finishing);
         assert_eq!(last.fraction(), 1.0);
         assert_eq!(last.position, Some([12.0, 6.0, 120.0]));
-        assert!(seen.windows(2).all(|w| w[0].acked <= w[1].acked));
+        assert!(seen.windows(2).all(|w| w[0].done <= w[1].done));
         assert!(seen
             .iter()
-            .any(|p| p.eta.is_some_and(|eta| eta > Duration::ZERO)));
+            .any(|p| p.left.is_some_and(|left| left > Duration::ZERO)));
     }
 
     #[test]

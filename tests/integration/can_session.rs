@@ -12,11 +12,11 @@ use whirl::config::machine::Axis;
 use whirl::config::machine::MachineProfile;
 use whirl::judge::simulator::machine;
 use whirl::post::setpoints::{sample, SampleConfig, SetPoints};
-use whirl::program::{Move, Pose, Program};
+use whirl::program::{Move, Position, Program};
 use whirl::protocol::canopen::session::{Event, Phase, Session, SessionConfig, StopReason};
 use whirl::protocol::canopen::slcan::{Bitrate, Command, Decoder, Received};
 use whirl_sim::canopen::{Bus, BusConfig, BusEvent, PowerState};
-use whirl_sim::{ExecutedBlock, Position};
+use whirl_sim::{ExecutedBlock, Position as SimPosition};
 
 const MS: Duration = Duration::from_millis(1);
 /// The SYNC period.
@@ -36,7 +36,7 @@ fn setpoints(program: &Program) -> SetPoints {
     let profile = MachineProfile::builtin_sim().unwrap();
     let config =
         SampleConfig::for_machine(&profile, PERIOD, SCALE, Some(Duration::from_millis(500)));
-    sample(program, Pose::known(0.0, 0.0, 0.0), &config).unwrap()
+    sample(program, Position::known(0.0, 0.0, 0.0), &config).unwrap()
 }
 
 fn session_config() -> SessionConfig {
@@ -63,7 +63,7 @@ impl Rig {
     fn new(setpoints: SetPoints, adjust: impl FnOnce(&mut BusConfig)) -> Rig {
         let profile = MachineProfile::builtin_sim().unwrap();
         let mut config =
-            BusConfig::for_machine(&machine(&profile), SCALE, PERIOD, Position::default());
+            BusConfig::for_machine(&machine(&profile), SCALE, PERIOD, SimPosition::default());
         adjust(&mut config);
         let mut bus = Bus::new(config).unwrap();
         let mut open = Command::SetBitrate(Bitrate::M1).encode();
@@ -148,7 +148,7 @@ impl Rig {
     }
 }
 
-fn counts(p: Position) -> [i64; 3] {
+fn counts(p: SimPosition) -> [i64; 3] {
     let a = p.to_array();
     std::array::from_fn(|k| (a[k] * SCALE[k]).round() as i64)
 }
@@ -157,10 +157,10 @@ fn counts(p: Position) -> [i64; 3] {
 /// nowhere left out).
 fn segments(program: &Program) -> Vec<([f64; 3], [f64; 3])> {
     program
-        .steps(Pose::known(0.0, 0.0, 0.0))
+        .steps(Position::known(0.0, 0.0, 0.0))
         .filter(|s| s.action.target().is_some())
         .map(|s| {
-            let at = |p: Pose| Axis::ALL.map(|a| p.get(a).unwrap());
+            let at = |p: Position| Axis::ALL.map(|a| p.get(a).unwrap());
             (at(s.from), at(s.to))
         })
         .filter(|(a, b)| a != b)
@@ -264,7 +264,7 @@ fn a_planned_program_runs_on_three_simulated_drives_set_point_by_set_point() {
     assert_eq!(at, planned.len() - 1, "the path reached the last move");
     // It ends where the program does, the drives disabled.
     assert_eq!(counts(rig.executed.last().unwrap().to), sp.end());
-    assert_eq!(sp.end(), counts(Position::from_array(planned[at].1)));
+    assert_eq!(sp.end(), counts(SimPosition::from_array(planned[at].1)));
     for drive in rig.bus.drives() {
         assert_eq!(drive.power_state(), PowerState::SwitchOnDisabled);
     }

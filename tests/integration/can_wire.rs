@@ -21,16 +21,15 @@ use whirl::config::machine::Axis;
 use whirl::config::machine::MachineProfile;
 use whirl::log::{self, ExecLog};
 use whirl::post::setpoints::{sample, SampleConfig, SetPoints};
-use whirl::program::{Move, Pose, Program};
+use whirl::program::{Move, Position, Program};
 use whirl::protocol::canopen::cia301::NodeId;
 use whirl::protocol::canopen::session::{SessionConfig, StopReason};
 use whirl::protocol::canopen::slcan::Bitrate;
-use whirl::transport::can::{
-    stream_can, CanClock, CanError, CanLink, CanOptions, CanOutcome, CanProgress,
-};
+use whirl::transport::can::{stream_can, CanClock, CanError, CanLink, CanOptions, CanOutcome};
+use whirl::transport::{Progress, Unit};
 use whirl_sim::canopen::serve::{serve_slcan, ServeOptions, SharedBus};
 use whirl_sim::canopen::{Bus, BusConfig, BusEvent, DriveEvent, PowerState};
-use whirl_sim::{ExecutedBlock, Position};
+use whirl_sim::{ExecutedBlock, Position as SimPosition};
 
 /// Cycles a SYNC-locked run may have sent and not yet had acknowledged: the transport's
 /// "all but the last eight cycles" (src/transport/can.rs, module docs). The drives'
@@ -85,7 +84,7 @@ fn bus(profile: &MachineProfile, drives: &DriveSettings) -> SharedBus {
         &whirl::judge::simulator::machine(profile),
         drives.counts_per_unit(),
         drives.period(),
-        Position::default(),
+        SimPosition::default(),
     );
     Arc::new(Mutex::new(Bus::new(config).expect("the bus builds")))
 }
@@ -110,6 +109,7 @@ fn options(profile: &MachineProfile, drives: &DriveSettings) -> CanOptions {
         answer_timeout: Duration::from_secs(5),
         program: "double-start (short)".to_owned(),
         on_progress: None,
+        commands: None,
     }
 }
 
@@ -224,7 +224,7 @@ fn node(id: u8) -> NodeId {
 }
 
 /// `position` in drive counts, rounded.
-fn counts(position: Position, scale: [f64; 3]) -> [i64; 3] {
+fn counts(position: SimPosition, scale: [f64; 3]) -> [i64; 3] {
     let a = position.to_array();
     std::array::from_fn(|k| (a[k] * scale[k]).round() as i64)
 }
@@ -250,7 +250,7 @@ async fn every_set_point_executes_once(mode: DriveMode) {
     let program = program(&profile);
     let expected: SetPoints = sample(
         &program,
-        Pose::known(0.0, 0.0, 0.0),
+        Position::known(0.0, 0.0, 0.0),
         &SampleConfig::for_drives(&profile, &drives),
     )
     .unwrap();
@@ -263,7 +263,7 @@ async fn every_set_point_executes_once(mode: DriveMode) {
     let options = CanOptions {
         on_progress: Some(Box::new({
             let told = Arc::clone(&told);
-            move |p: &CanProgress| told.lock().unwrap().push(*p)
+            move |p: &Progress| told.lock().unwrap().push(p.clone())
         })),
         ..options(&profile, &drives)
     };
@@ -284,15 +284,16 @@ async fn every_set_point_executes_once(mode: DriveMode) {
     let period = drives.period();
     assert!(told.len() >= outcome.setpoints / 250, "{}", told.len());
     for pair in told.windows(2) {
-        assert!(pair[1].sent >= pair[0].sent + 250 || pair[1].sent == pair[1].total);
+        assert!(pair[1].done >= pair[0].done + 250 || pair[1].done == pair[1].total);
     }
     for p in told.iter() {
         assert_eq!(p.total, outcome.setpoints);
-        assert_eq!(p.left, period * (p.total - p.sent) as u32);
+        assert_eq!(p.unit, Unit::SetPoints);
+        assert_eq!(p.left, Some(period * (p.total - p.done) as u32));
     }
     assert_eq!(
-        told.last().map(|p| (p.sent, p.left)),
-        Some((outcome.setpoints, Duration::ZERO))
+        told.last().map(|p| (p.done, p.left)),
+        Some((outcome.setpoints, Some(Duration::ZERO)))
     );
     assert!(outcome.unconfirmed.is_empty());
     assert_eq!(outcome.sent, outcome.setpoints);

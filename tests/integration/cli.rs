@@ -483,7 +483,7 @@ fn can_transports_without_drives_or_a_port_are_refused_before_anything_is_opened
         OsStr::new("--log"),
         log.as_os_str(),
     ]);
-    assert!(message.contains("no --port given"), "{message}");
+    assert!(message.contains("no port given"), "{message}");
     assert!(message.contains("modbus-tcp"), "{message}");
     // Nothing was run: the log was never opened.
     assert!(!log.exists());

@@ -231,7 +231,7 @@ fn every_example_dry_runs_within_delta_over_modbus_tcp_and_rtu() {
 #[test]
 fn every_example_dry_runs_within_delta_on_can_drives_over_slcan() {
     use whirl::config::machine::Axis;
-    use whirl::program::Pose;
+    use whirl::program::Position;
     let profile_path = util::root().join("machine-profiles/canopen-drives.toml");
     let profile = whirl::config::machine::MachineProfile::load(&profile_path).unwrap();
     let drives = profile
@@ -277,7 +277,11 @@ fn every_example_dry_runs_within_delta_on_can_drives_over_slcan() {
                         whirl::plan::plan(&whirl::config::job::Job::load(job).unwrap(), profile)
                             .unwrap()
                             .program;
-                    let end = planned.steps(Pose::known(0.0, 0.0, 0.0)).last().unwrap().to;
+                    let end = planned
+                        .steps(Position::known(0.0, 0.0, 0.0))
+                        .last()
+                        .unwrap()
+                        .to;
                     let moves: Vec<([f64; 2], [f64; 3], [f64; 3])> = log
                         .records
                         .iter()

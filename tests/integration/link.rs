@@ -15,12 +15,13 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use tokio::sync::{mpsc, oneshot};
+use tokio::sync::oneshot;
 use tokio_serial::{SerialPort, SerialPortBuilderExt};
 use whirl::config::machine::MachineProfile;
 use whirl::log::{self, ExecLog};
 use whirl::protocol::grbl::{LineRef, ResumeBasis, StopReason, StreamerConfig};
-use whirl::transport::{stream, Command, Ending, StreamOptions, StreamOutcome};
+use whirl::transport::control;
+use whirl::transport::serial::{stream, Ending, StreamOptions, StreamOutcome};
 use whirl_sim::serve::{serve, ServeOptions};
 use whirl_sim::{
     Alarm, Controller, ControllerOptions, Event, ExecutedBlock, GrblError, MachineState,
@@ -381,7 +382,7 @@ fn feed_hold_then_resume_completes_every_line_once() {
     let lines = program(40, 5.0, 600.0);
     let hold_after = n_of(12);
     let link = Link::start(ControllerOptions::default(), scaled());
-    let (commands, receiver) = mpsc::channel(2);
+    let (commands, receiver) = control();
     // The operator: feed hold once the machine is well into the program, cycle start once
     // it has come to rest in the hold, each on what the simulator shows.
     let machine = link.log.clone();
@@ -389,11 +390,11 @@ fn feed_hold_then_resume_completes_every_line_once() {
         machine.wait_for(&format!("N{hold_after} executed"), |events| {
             executed(events).any(|b| b.n >= Some(hold_after))
         });
-        commands.blocking_send(Command::FeedHold).unwrap();
+        assert!(commands.hold());
         machine.wait_for("the machine at rest in a feed hold", |events| {
             last_state(events) == Some(MachineState::Hold { complete: true })
         });
-        commands.blocking_send(Command::Resume).unwrap();
+        assert!(commands.resume());
     });
     let outcome = link.stream(
         &lines,

@@ -7,7 +7,7 @@ use whirl::config::connection::Connection;
 use whirl::config::job::Job;
 use whirl::config::machine::{Axis, MachineProfile};
 use whirl::program::limits::check_limits;
-use whirl::program::{Move, Pose};
+use whirl::program::{Move, Position};
 
 /// Every example job plans on the two machines that are not reached by G-code, and
 /// what is planned fits their links: the register map's segments (whose 0.1 µm and
@@ -46,7 +46,7 @@ fn the_examples_plan_on_the_modbus_and_can_machines() {
                 .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             // CAN: X and Z stay in INTEGER32 counts, and every linked move spans at
             // least four cycles.
-            for step in plan.program.steps(Pose::UNKNOWN) {
+            for step in plan.program.steps(Position::UNKNOWN) {
                 for (slot, axis) in [Axis::X, Axis::Z].into_iter().enumerate() {
                     if let Some(value) = step.to.get(axis) {
                         let counts = value * drives.counts_per_mm[slot];

@@ -3,6 +3,7 @@
 mod can_session;
 mod can_wire;
 mod cli;
+mod control;
 mod dry_run;
 mod layers;
 mod link;

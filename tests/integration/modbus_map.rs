@@ -17,7 +17,7 @@ use whirl::config::job::Job;
 use whirl::config::machine::MachineProfile;
 use whirl::judge::simulator::machine;
 use whirl::post::modbus::Segment;
-use whirl::program::{Pose, Program};
+use whirl::program::{Position, Program};
 use whirl::protocol::modbus::map::State;
 use whirl::protocol::modbus::{
     Exception, Request, Response, RingWriter, WriterEvent, WriterOptions,
@@ -134,7 +134,7 @@ fn a_planned_program_streams_through_the_register_map_each_segment_once() {
     // not segments, so the program's blocks are walked past them.
     let start = ControllerOptions::default().start.to_array();
     let steps: Vec<_> = program
-        .steps(Pose::known(start[0], start[1], start[2]))
+        .steps(Position::known(start[0], start[1], start[2]))
         .filter(|s| !matches!(s.action, whirl::program::Move::Comment(_)))
         .collect();
     assert_eq!(steps.len() + 1, segments.len(), "M2 is added at the end");

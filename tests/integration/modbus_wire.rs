@@ -26,7 +26,7 @@ use whirl::config::machine::MachineProfile;
 use whirl::judge::dry_run::MODBUS_TIME_SCALE;
 use whirl::log::ExecLog;
 use whirl::post::modbus::Segment;
-use whirl::program::{Move, Pose, Program};
+use whirl::program::{Move, Position, Program};
 use whirl::protocol::modbus::map::{AlarmCode, WordOrder};
 use whirl::protocol::modbus::{Exception, WriterError, WriterOptions};
 use whirl::transport::modbus::{stream_modbus, ModbusLink, ModbusOptions, ModbusOutcome};
@@ -347,7 +347,7 @@ fn program(blocks: usize) -> (Vec<Segment>, Vec<u32>) {
     // (grbl plans no block for that).
     let start = ControllerOptions::default().start.to_array();
     let moving = program
-        .steps(Pose::known(start[0], start[1], start[2]))
+        .steps(Position::known(start[0], start[1], start[2]))
         .filter(|s| !matches!(s.action, Move::Comment(_)))
         .zip(1..)
         .filter(|(s, _)| s.action.target().is_some() && s.from != s.to)

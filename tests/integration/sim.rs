@@ -6,7 +6,7 @@ use crate::util;
 use whirl::config::job::Job;
 use whirl::config::machine::MachineProfile;
 use whirl::judge::simulator::machine;
-use whirl::program::Pose;
+use whirl::program::Position;
 use whirl_sim::{Controller, ControllerOptions, Event};
 
 #[test]
@@ -53,7 +53,7 @@ fn a_planned_program_runs_on_the_simulator_line_by_line_and_ends_where_it_says()
     // Where the program says the machine ends, in its continuous frame.
     let program = whirl::post::gcode::parse::read_program(&lines.join("\n"), false).unwrap();
     let end = program
-        .steps(Pose::UNKNOWN)
+        .steps(Position::UNKNOWN)
         .filter_map(|s| s.action.target().map(|_| s.to))
         .last()
         .unwrap();

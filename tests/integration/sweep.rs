@@ -17,7 +17,7 @@ use whirl::geometry::linkage::Whirling;
 use whirl::geometry::profile::Profile;
 use whirl::judge::measure::{Motion, Target};
 use whirl::post::gcode::parse::read_program;
-use whirl::program::{Move, Pose as GPose, Program};
+use whirl::program::{Move, Position, Program};
 
 /// The ring at one executed pose, with the trigonometry of C done once.
 #[derive(Clone, Copy)]
@@ -66,7 +66,7 @@ impl Ring {
 /// The executed linked motion as (X, Z, C in radians) endpoints, in one continuous C frame.
 fn linked_path(program: &Program) -> Vec<[f64; 3]> {
     let mut out: Vec<[f64; 3]> = Vec::new();
-    for step in program.steps(GPose::UNKNOWN) {
+    for step in program.steps(Position::UNKNOWN) {
         if let Move::Linked { .. } = step.action {
             let from = step.from;
             let to = step.to;
@@ -190,7 +190,7 @@ fn planned(name: &str) -> (Job, Profile, f64, Program, whirl::plan::Report) {
     let machine = MachineProfile::builtin_sim().unwrap();
     let plan = whirl::plan::plan(&job, &machine).unwrap();
     let program = read_program(&plan.text, machine.x_diameter()).unwrap();
-    let profile = job.profile().unwrap();
+    let profile = job.profile.clone();
     let delta = plan.report.installation_angle_deg;
     (job, profile, delta, program, plan.report)
 }
@@ -220,7 +220,7 @@ fn assert_within_delta(name: &str) {
 fn engine_agrees(job: &Job, profile: &Profile, program: &Program, brute: &Measured) {
     let linkage = whirl::geometry::linkage::Linkage {
         p: job.p(),
-        ring: job.ring(profile),
+        ring: job.ring(),
     };
     let z_range = (job.groove.z_start, job.groove.z_start + job.groove.length);
     let target = Target::new(

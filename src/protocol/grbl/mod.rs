@@ -47,6 +47,6 @@ pub use codes::{alarm_message, error_message};
 pub use response::{parse_response, BuildOptions, LineBuffer, MachineState, Response, Status};
 pub use resume::{resume_preamble, ModalState, ResumeError};
 pub use streamer::{
-    Aux, Event, LineRef, Progress, ResumeBasis, ResumePoint, StopReason, StreamError, Streamer,
-    StreamerConfig,
+    Aux, Event, LineRef, Progress, ResumeBasis, ResumePoint, StopReason, Streamer, StreamerConfig,
+    StreamerError,
 };

@@ -387,7 +387,7 @@ pub struct ResumePoint {
 
 /// Why a [`Streamer`] could not be built.
 #[derive(Debug, Clone, PartialEq, Error)]
-pub enum StreamError {
+pub enum StreamerError {
     /// A byte the controller would act on outside the line, or that would split it: a line
     /// end, a real-time command byte (`?` `!` `~` 0x18, or any byte above 0x7F, which
     /// grbl and grblHAL read as real-time overrides), or DEL (a backspace to grblHAL).
@@ -516,9 +516,9 @@ impl Streamer {
     /// A streamer for `lines` (without line ends), from `config.start_line` on.
     ///
     /// Refuses lines holding bytes that cannot be streamed (see
-    /// [`StreamError::ForbiddenByte`]) or too long for `config.rx_size`, before anything
+    /// [`StreamerError::ForbiddenByte`]) or too long for `config.rx_size`, before anything
     /// is sent.
-    pub fn new(lines: Vec<String>, config: StreamerConfig) -> Result<Streamer, StreamError> {
+    pub fn new(lines: Vec<String>, config: StreamerConfig) -> Result<Streamer, StreamerError> {
         Streamer::with_preamble(lines, Vec::new(), config)
     }
 
@@ -531,7 +531,7 @@ impl Streamer {
         lines: Vec<String>,
         line_index: usize,
         config: StreamerConfig,
-    ) -> Result<Streamer, StreamError> {
+    ) -> Result<Streamer, StreamerError> {
         let preamble = resume_preamble(&lines, line_index, config.spin_up_dwell_s)?;
         let config = StreamerConfig {
             start_line: line_index,
@@ -547,13 +547,13 @@ impl Streamer {
         lines: Vec<String>,
         preamble: Vec<String>,
         config: StreamerConfig,
-    ) -> Result<Streamer, StreamError> {
+    ) -> Result<Streamer, StreamerError> {
         if config.rx_size < 2 {
-            return Err(StreamError::RxTooSmall(config.rx_size));
+            return Err(StreamerError::RxTooSmall(config.rx_size));
         }
         let start = config.start_line;
         if start > lines.len() {
-            return Err(StreamError::StartBeyondEnd {
+            return Err(StreamerError::StartBeyondEnd {
                 start,
                 len: lines.len(),
             });
@@ -1090,7 +1090,7 @@ impl Streamer {
 }
 
 /// Checks that `text` can be streamed as one line within `budget` bytes.
-fn check_line(line: LineRef, text: &str, budget: usize) -> Result<(), StreamError> {
+fn check_line(line: LineRef, text: &str, budget: usize) -> Result<(), StreamerError> {
     if let Some((i, &byte)) = text.as_bytes().iter().enumerate().find(|(_, &b)| {
         matches!(
             b,
@@ -1098,7 +1098,7 @@ fn check_line(line: LineRef, text: &str, budget: usize) -> Result<(), StreamErro
         ) || b == realtime::SOFT_RESET
             || b >= 0x7f
     }) {
-        return Err(StreamError::ForbiddenByte {
+        return Err(StreamerError::ForbiddenByte {
             line,
             column: i + 1,
             byte,
@@ -1106,7 +1106,7 @@ fn check_line(line: LineRef, text: &str, budget: usize) -> Result<(), StreamErro
     }
     let bytes = text.len() + 1;
     if bytes > budget {
-        return Err(StreamError::LineTooLong {
+        return Err(StreamerError::LineTooLong {
             line,
             bytes,
             budget,
@@ -1690,7 +1690,7 @@ M2";
         // Nothing resumes past the end, or with unreadable history.
         assert!(matches!(
             Streamer::resume_from(lines.clone(), 99, no_query()),
-            Err(StreamError::Resume(ResumeError::BeyondEnd { .. }))
+            Err(StreamerError::Resume(ResumeError::BeyondEnd { .. }))
         ));
     }
 
@@ -1806,7 +1806,7 @@ M2";
         };
         assert_eq!(
             refused(&["G0 X0", "G1 X1 (why?)"], no_query()),
-            StreamError::ForbiddenByte {
+            StreamerError::ForbiddenByte {
                 line: LineRef::Program(1),
                 column: 11,
                 byte: b'?'
@@ -1814,16 +1814,16 @@ M2";
         );
         assert!(matches!(
             refused(&["G0 X0\r"], no_query()),
-            StreamError::ForbiddenByte { byte: b'\r', .. }
+            StreamerError::ForbiddenByte { byte: b'\r', .. }
         ));
         assert!(matches!(
             refused(&["(é)"], no_query()),
-            StreamError::ForbiddenByte { byte: 0xc3, .. }
+            StreamerError::ForbiddenByte { byte: 0xc3, .. }
         ));
         let long = "G1 X1".repeat(30);
         assert!(matches!(
             Streamer::new(vec![long.clone()], no_query()).unwrap_err(),
-            StreamError::LineTooLong {
+            StreamerError::LineTooLong {
                 bytes: 151,
                 budget: 127,
                 ..
@@ -1842,7 +1842,7 @@ M2";
                     ..no_query()
                 }
             ),
-            StreamError::StartBeyondEnd { start: 2, len: 1 }
+            StreamerError::StartBeyondEnd { start: 2, len: 1 }
         );
         assert_eq!(
             refused(
@@ -1852,7 +1852,7 @@ M2";
                     ..no_query()
                 }
             ),
-            StreamError::RxTooSmall(1)
+            StreamerError::RxTooSmall(1)
         );
         // Lines before the start line are not sent, so not checked.
         let config = StreamerConfig {

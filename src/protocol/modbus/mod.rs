@@ -181,6 +181,9 @@ pub enum WriterEvent {
     Alarm(AlarmReport),
     /// Every segment executed; the stream is over.
     Done,
+    /// The caller's abort was written: the controller stops and flushes its ring; the
+    /// stream is over.
+    Aborted,
     /// The stream cannot go on.
     Failed(WriterError),
 }
@@ -302,6 +305,9 @@ pub struct RingWriter {
     end: bool,
     /// An exception 04 came; the next status read says why.
     refused: Option<Request>,
+    /// The caller's commands, as control words still to write: each edge followed by the
+    /// levels alone, so that the next command is a new edge.
+    commands: VecDeque<u16>,
     next_status: Duration,
     next_watchdog: Duration,
     watchdog: u16,
@@ -329,6 +335,7 @@ impl RingWriter {
             run: false,
             end: false,
             refused: None,
+            commands: VecDeque::new(),
             next_status: Duration::ZERO,
             next_watchdog: Duration::ZERO,
             watchdog: 0,
@@ -410,6 +417,42 @@ impl RingWriter {
         }
     }
 
+    /// Feed hold (`HOLD`): the controller stops along the path and holds its position;
+    /// slots keep filling the ring. Sent ahead of any slot.
+    pub fn hold(&mut self) {
+        self.command(control::HOLD);
+    }
+
+    /// Cycle start after a hold (`RESUME`).
+    pub fn resume(&mut self) {
+        self.command(control::RESUME);
+    }
+
+    /// Stop and flush the ring (`ABORT`); once the controller has the write, the stream
+    /// ends with [`WriterEvent::Aborted`]. Before streaming began, it ends at once: nothing
+    /// was sent that moves the machine.
+    pub fn abort(&mut self) {
+        if matches!(self.phase, Phase::Stream) {
+            self.command(control::ABORT);
+        } else if self.phase != Phase::Finished {
+            self.events.push_back(WriterEvent::Aborted);
+            self.outstanding = None;
+            self.phase = Phase::Finished;
+        }
+    }
+
+    /// Queues `edge` and then the levels alone.
+    fn command(&mut self, edge: u16) {
+        if self.phase != Phase::Finished {
+            self.commands.extend([edge, 0]);
+        }
+    }
+
+    /// The control word's levels as written.
+    fn levels(&self) -> u16 {
+        (if self.run { control::RUN } else { 0 }) | (if self.end { control::END } else { 0 })
+    }
+
     /// The next event, oldest first.
     pub fn next_event(&mut self) -> Option<WriterEvent> {
         self.events.pop_front()
@@ -450,6 +493,9 @@ impl RingWriter {
         );
         if self.refused.is_some() {
             return Some(status);
+        }
+        if let Some(edge) = self.commands.pop_front() {
+            return Some(control_write(self.levels() | edge));
         }
         if self.staged {
             let value = (self.head + 1) % slots;
@@ -555,6 +601,10 @@ impl RingWriter {
                     self.head = 0;
                     self.tail = 0;
                     self.phase = Phase::Stream;
+                }
+                _ if value & control::ABORT != 0 => {
+                    self.events.push_back(WriterEvent::Aborted);
+                    self.phase = Phase::Finished;
                 }
                 _ => {
                     self.run |= value & control::RUN != 0;
@@ -856,6 +906,68 @@ mod tests {
         assert!(matches!(ev[1], WriterEvent::Status(_)));
         assert_eq!(published(&ev), vec![(1, 0), (2, 1), (3, 2)]);
         assert!(!w.is_finished());
+    }
+
+    /// The control words a run wrote, in order.
+    fn control_words(sent: &[Request]) -> Vec<u16> {
+        sent.iter()
+            .filter_map(|r| match *r {
+                Request::WriteSingle { address, value } if address == reg::CONTROL => Some(value),
+                _ => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn hold_and_resume_are_edges_written_ahead_of_slots_then_cleared() {
+        let mut fake = Fake::new(8);
+        let mut w = writer(linked(20));
+        let mut sent = drive(&mut w, &mut fake, Duration::ZERO);
+        let started = control_words(&sent);
+        // The start: CONTROL 0, ABORT (the flush), then RUN once the ring is filled.
+        assert_eq!(started, [0, control::ABORT, control::RUN]);
+        w.hold();
+        w.hold();
+        sent = drive(&mut w, &mut fake, Duration::ZERO);
+        // Each hold is a rising edge over RUN, cleared again so the next is one too.
+        let hold = control::RUN | control::HOLD;
+        assert_eq!(
+            control_words(&sent),
+            [hold, control::RUN, hold, control::RUN]
+        );
+        // Nothing else went out: the ring is full, so no slot was waiting.
+        assert_eq!(sent.len(), 4);
+        fake.tail = 4;
+        w.resume();
+        sent = drive(&mut w, &mut fake, 60 * MS);
+        let resume = control::RUN | control::RESUME;
+        assert_eq!(control_words(&sent)[..2], [resume, control::RUN]);
+        // The command went before the slots the freed room let in.
+        assert_eq!(sent[0], write(reg::CONTROL, resume));
+        assert!(sent[2..]
+            .iter()
+            .any(|r| matches!(r, Request::WriteMultiple { .. })));
+        assert!(!w.is_finished());
+    }
+
+    #[test]
+    fn an_abort_flushes_the_ring_and_ends_the_stream() {
+        let mut fake = Fake::new(8);
+        let mut w = writer(linked(20));
+        drive(&mut w, &mut fake, Duration::ZERO);
+        events(&mut w);
+        w.abort();
+        let sent = drive(&mut w, &mut fake, Duration::ZERO);
+        assert_eq!(sent, [write(reg::CONTROL, control::RUN | control::ABORT)]);
+        assert_eq!((fake.head, fake.tail), (0, 0), "the controller flushed");
+        assert_eq!(events(&mut w), [WriterEvent::Aborted]);
+        assert!(w.is_finished());
+        assert_eq!(w.poll(Duration::from_secs(1)), None);
+        // Before the stream began, an abort ends it without a word to the controller.
+        let mut early = writer(linked(3));
+        early.abort();
+        assert_eq!(events(&mut early), [WriterEvent::Aborted]);
+        assert_eq!(early.poll(Duration::ZERO), None);
     }
 
     #[test]

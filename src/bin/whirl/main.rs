@@ -1,0 +1,395 @@
+//! The `whirl` command line: thin glue over the library. Each subcommand reads its files,
+//! calls the library, prints what came back and writes its outputs; the words it takes are
+//! in [`args`], the terminal's progress bar in [`terminal`].
+
+mod args;
+mod files;
+mod terminal;
+
+use anyhow::{Context, Result};
+use args::{Cli, Command, LogCommand, SweepTool};
+use clap::Parser;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use whirl::config::job::Job;
+use whirl::config::machine::MachineProfile;
+use whirl::judge::dry_run::{self, DryRunOptions};
+use whirl::log::ExecLog;
+use whirl::transport::{self, Link, Outcome, Posted, RunOptions, TransportKind};
+
+/// Exit code of `whirl verify` and `whirl dry-run` for a program measured beyond Δ.
+const BEYOND_DELTA: u8 = 2;
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    match run(Cli::parse()) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {}", whirl::error_message(e.as_ref()));
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<ExitCode> {
+    match cli.command {
+        Command::Plan {
+            job,
+            machine,
+            output,
+            report,
+            verify,
+        } => plan(&job, machine.as_deref(), &output, report.as_deref(), verify),
+        Command::Sweep {
+            tool:
+                SweepTool::Paraboloid {
+                    a,
+                    b,
+                    radius,
+                    pitch,
+                    accuracy,
+                    output,
+                },
+        } => {
+            let csv = whirl::papers::section::run_paraboloid(a, b, radius, pitch, accuracy)?;
+            files::write_all(&[(Some(&output), &csv)])?;
+            println!(
+                "{}: {} points within {accuracy} mm of the section",
+                output.display(),
+                csv.lines().count() - 1
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Stream {
+            input,
+            port,
+            transport,
+            baud,
+            machine,
+            log,
+            stall_timeout,
+            resume_at,
+        } => {
+            let machine = load_machine(machine.as_deref())?;
+            let link = Link::resolve(&machine, transport.map(TransportKind::from), port, baud)?;
+            let resume_at = match resume_at {
+                Some(0) => anyhow::bail!("--resume-at counts lines from 1"),
+                line => line.map(|l| l - 1),
+            };
+            let options = RunOptions {
+                stall_timeout: Some(std::time::Duration::from_secs_f64(stall_timeout)),
+                resume_at,
+                progress: None,
+            };
+            stream(&input, &machine, &link, options, &log)
+        }
+        Command::DryRun {
+            job,
+            program,
+            machine,
+            log,
+            report,
+            time_scale,
+            baud,
+            rx,
+            transport,
+        } => {
+            let options = DryRunOptions {
+                transport: transport.into(),
+                time_scale: time_scale.filter(|s| *s > 0.0),
+                baud,
+                rx_size: rx,
+                ..DryRunOptions::default()
+            };
+            let paths = DryRunPaths {
+                job,
+                program,
+                machine,
+                log,
+                report,
+            };
+            dry_run(paths, options)
+        }
+        Command::Log { command } => {
+            match command {
+                LogCommand::Summary { log } => {
+                    let read = whirl::log::read(&log)?;
+                    let s = whirl::log::Summary::of(&read);
+                    println!("{}", serde_json::to_string_pretty(&s)?);
+                }
+                LogCommand::Plot { log, output, job } => {
+                    let read = whirl::log::read(&log)?;
+                    let mut plots = whirl::judge::plots::axis_plots(&read);
+                    if let Some(job) = job {
+                        let job = Job::load(&job)?;
+                        plots.push(
+                            whirl::judge::plots::section_plot(&read, &job)
+                                .with_context(|| format!("{}", log.display()))?,
+                        );
+                    }
+                    files::write_all(&[(Some(&output), &whirl::judge::svg::stack(&plots))])?;
+                }
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Verify {
+            program,
+            job,
+            machine,
+            report,
+            svg,
+        } => {
+            let machine = load_machine(machine.as_deref())?;
+            let job = Job::load(&job)?;
+            let text = std::fs::read_to_string(&program)
+                .with_context(|| format!("cannot read {}", program.display()))?;
+            let v = whirl::judge::verify::verify(&job, &machine, &text, svg.is_some())
+                .with_context(|| format!("cannot verify {}", program.display()))?;
+            let json = serde_json::to_string_pretty(&v)?;
+            files::write_all(&[
+                (Some(&report), &json),
+                (svg.as_deref(), &v.svg.clone().unwrap_or_default()),
+            ])?;
+            println!(
+                "{}: max overcut {:.5} mm, max undercut {:.5} mm over {} points; Δ {} mm: {}",
+                program.display(),
+                v.max_overcut_mm,
+                v.max_undercut_mm,
+                v.points,
+                v.delta_mm,
+                if v.within_delta { "within" } else { "BEYOND" }
+            );
+            Ok(if v.within_delta {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::from(BEYOND_DELTA)
+            })
+        }
+    }
+}
+
+/// `whirl plan`: the program and its report, written only once everything is computed.
+fn plan(
+    job: &Path,
+    machine: Option<&Path>,
+    output: &Path,
+    report: Option<&Path>,
+    verify: bool,
+) -> Result<ExitCode> {
+    let machine = load_machine(machine)?;
+    let job = Job::load(job)?;
+    let plan = whirl::plan::plan(&job, &machine)
+        .with_context(|| format!("cannot plan {}", job_name(&job)))?;
+    let mut verified = None;
+    if verify {
+        let v = whirl::judge::verify::verify(&job, &machine, &plan.text, false)
+            .context("cannot verify the planned program")?;
+        if !v.within_delta {
+            anyhow::bail!(
+                "the planned program measures {:.5} mm overcut, {:.5} mm undercut: beyond Δ = {} mm",
+                v.max_overcut_mm,
+                v.max_undercut_mm,
+                v.delta_mm
+            );
+        }
+        println!(
+            "verified: max overcut {:.5} mm, max undercut {:.5} mm over {} points (Δ {} mm)",
+            v.max_overcut_mm, v.max_undercut_mm, v.points, v.delta_mm
+        );
+        verified = Some(v);
+    }
+    let json = match &verified {
+        Some(verify) => serde_json::to_string_pretty(&whirl::judge::verify::VerifiedReport {
+            report: &plan.report,
+            verify,
+        })?,
+        None => serde_json::to_string_pretty(&plan.report)?,
+    };
+    files::write_all(&[(Some(output), &plan.text), (report, &json)])?;
+    let r = &plan.report;
+    println!(
+        "{}: {} segments ({} per period), max error {:.4} mm of Δ {:.4} mm \
+         (interpolation {:.4}, scallop {:.4}, cusp {:.4}), cycle {:.1} s",
+        output.display(),
+        r.segments,
+        r.nodes_per_period,
+        r.max_error_mm,
+        r.delta_mm,
+        r.interp_error_mm,
+        r.scallop_mm,
+        r.cusp_mm,
+        r.cycle_time_s
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `whirl stream`: the program (or the job, planned for the machine first) to the machine
+/// at `link`, checked against its limits before the log is opened.
+fn stream(
+    input: &Path,
+    machine: &MachineProfile,
+    link: &Link,
+    mut options: RunOptions,
+    log: &Path,
+) -> Result<ExitCode> {
+    let name = input.display().to_string();
+    let text = if input.extension().is_some_and(|e| e == "toml") {
+        let job = Job::load(input)?;
+        whirl::plan::plan(&job, machine)
+            .with_context(|| format!("cannot plan {}", job_name(&job)))?
+            .text
+    } else {
+        std::fs::read_to_string(input).with_context(|| format!("cannot read {name}"))?
+    };
+    let posted = Posted::read(name.as_str(), &text, machine)
+        .with_context(|| format!("cannot read {name}"))?;
+    posted.check(machine)?;
+    let mut log = ExecLog::append(log)?;
+    let bar = terminal::progress_bar();
+    options.progress = bar.as_ref().map(terminal::Bar::callback);
+    // Nothing presses the buttons yet: the run goes on unattended.
+    let (_, commands) = transport::control();
+    let outcome = runtime()?.block_on(transport::stream(
+        link, &posted, machine, options, commands, &mut log,
+    ));
+    if let Some(bar) = bar {
+        bar.finish();
+    }
+    let outcome = outcome?;
+    println!("{}", outcome.summary(&name, link));
+    match outcome.stop() {
+        None => Ok(ExitCode::SUCCESS),
+        Some(stop) => anyhow::bail!("{stop}{}", resume_hint(&outcome)),
+    }
+}
+
+/// Where a stopped serial run resumes, in the command line's words.
+fn resume_hint(outcome: &Outcome) -> String {
+    let Outcome::Serial(outcome) = outcome else {
+        return String::new();
+    };
+    let Some(resume) = &outcome.resume else {
+        return String::new();
+    };
+    let mut hint = format!("; resume with --resume-at {}", resume.line_index + 1);
+    if !resume.possibly_executed.is_empty() {
+        hint.push_str(&format!(
+            " (lines {} to {} may already have run: check where the machine stands before \
+             resuming)",
+            resume.possibly_executed.start + 1,
+            resume.possibly_executed.end
+        ));
+    }
+    hint
+}
+
+/// The files `whirl dry-run` reads and writes.
+struct DryRunPaths {
+    job: PathBuf,
+    program: Option<PathBuf>,
+    machine: Option<PathBuf>,
+    log: Option<PathBuf>,
+    report: Option<PathBuf>,
+}
+
+/// `whirl dry-run`: the job's program (or one given for it) on the simulator, refused
+/// before the log is opened if it cannot run; the exit code says whether it was within Δ.
+fn dry_run(paths: DryRunPaths, mut options: DryRunOptions) -> Result<ExitCode> {
+    let machine = load_machine(paths.machine.as_deref())?;
+    let job = Job::load(&paths.job)?;
+    let (name, text) = match &paths.program {
+        Some(path) => (
+            path.display().to_string(),
+            std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read {}", path.display()))?,
+        ),
+        None => (
+            paths.job.display().to_string(),
+            whirl::plan::plan(&job, &machine)
+                .with_context(|| format!("cannot plan {}", job_name(&job)))?
+                .text,
+        ),
+    };
+    let posted = Posted::read(name.as_str(), &text, &machine)
+        .with_context(|| format!("cannot read {name}"))?;
+    dry_run::preflight(&machine, &posted, options.transport)?;
+    let mut log = match &paths.log {
+        Some(path) => ExecLog::append(path)?,
+        None => ExecLog::discard(),
+    };
+    let bar = terminal::progress_bar();
+    options.progress = bar.as_ref().map(terminal::Bar::callback);
+    let r = runtime()?.block_on(dry_run::dry_run(&job, &machine, &posted, options, &mut log));
+    if let Some(bar) = bar {
+        bar.finish();
+    }
+    let r = r?;
+    let json = serde_json::to_string_pretty(&r)?;
+    files::write_all(&[(paths.report.as_deref(), &json)])?;
+    println!(
+        "{}: {} of {} lines acknowledged; {:.1} s on the machine, dry-run in {:.1} s; \
+         link {:.1} % busy at {} baud",
+        r.job,
+        r.lines_acked,
+        r.lines,
+        r.machine_time_s,
+        r.wall_time_s,
+        100.0 * r.link_utilization,
+        r.baud
+    );
+    println!(
+        "profile error measured by the simulator: overcut {:.4} mm, undercut {:.4} mm \
+         over {} of {} points; Δ {} mm",
+        r.max_overcut_mm, r.max_undercut_mm, r.points_measured, r.points, r.delta_mm
+    );
+    for a in &r.alarms {
+        println!(
+            "ALARM:{} {}{}",
+            a.code,
+            a.message,
+            a.detail
+                .as_ref()
+                .map_or(String::new(), |d| format!(": {d}"))
+        );
+    }
+    if let Some(stop) = &r.stop {
+        println!("stopped: {stop}");
+    }
+    let beyond = r.alarms.iter().any(|a| a.code == 64) || r.max_error_mm > r.delta_mm;
+    Ok(if r.within_delta {
+        println!("completed within Δ");
+        ExitCode::SUCCESS
+    } else if beyond {
+        println!("BEYOND Δ");
+        ExitCode::from(BEYOND_DELTA)
+    } else {
+        println!("did not complete");
+        ExitCode::FAILURE
+    })
+}
+
+/// The async runtime of a stream or a dry run: one thread, time and I/O.
+fn runtime() -> Result<tokio::runtime::Runtime> {
+    Ok(tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?)
+}
+
+fn job_name(job: &Job) -> String {
+    format!(
+        "the {}-start groove of lead {} mm",
+        job.groove.starts, job.groove.lead
+    )
+}
+
+fn load_machine(path: Option<&Path>) -> Result<MachineProfile> {
+    match path {
+        Some(p) => Ok(MachineProfile::load(p)?),
+        None => Ok(MachineProfile::builtin_sim()?),
+    }
+}
