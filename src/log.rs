@@ -115,22 +115,22 @@ pub struct Record {
 #[derive(Debug, thiserror::Error)]
 pub enum LogError {
     /// The file could not be opened or written.
-    #[error("{path}: {source}")]
+    #[error("executed-path log {path}: {error}")]
     Io {
         /// The log.
         path: PathBuf,
         /// Why.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// A line that is not an event (other than a torn last line).
-    #[error("{path} line {line}: not a log event: {source}")]
+    #[error("executed-path log {path} line {line}: not a log event: {error}")]
     Parse {
         /// The log.
         path: PathBuf,
         /// 1-based line.
         line: usize,
         /// Why.
-        source: serde_json::Error,
+        error: serde_json::Error,
     },
 }
 
@@ -162,9 +162,9 @@ impl ExecLog {
             .create(true)
             .append(true)
             .open(path)
-            .map_err(|source| LogError::Io {
+            .map_err(|error| LogError::Io {
                 path: path.to_owned(),
-                source,
+                error,
             })?;
         Ok(ExecLog {
             sink: Sink::File {
@@ -207,9 +207,9 @@ impl ExecLog {
                 let mut file = lock(file);
                 file.write_all(line.as_bytes())
                     .and_then(|()| file.flush())
-                    .map_err(|source| LogError::Io {
+                    .map_err(|error| LogError::Io {
                         path: path.clone(),
-                        source,
+                        error,
                     })
             }
             Sink::Memory(records) => {
@@ -241,9 +241,9 @@ pub struct Read {
 /// Read a log. A last line without its newline that does not parse is a torn write and is
 /// left out; any other bad line is an error naming it.
 pub fn read(path: &Path) -> Result<Read, LogError> {
-    let text = std::fs::read_to_string(path).map_err(|source| LogError::Io {
+    let text = std::fs::read_to_string(path).map_err(|error| LogError::Io {
         path: path.to_owned(),
-        source,
+        error,
     })?;
     let ends_clean = text.is_empty() || text.ends_with('\n');
     let lines: Vec<&str> = text.lines().collect();
@@ -256,11 +256,11 @@ pub fn read(path: &Path) -> Result<Read, LogError> {
         match serde_json::from_str::<Record>(l) {
             Ok(r) => records.push(r),
             Err(_) if i + 1 == lines.len() && !ends_clean => torn_tail = true,
-            Err(source) => {
+            Err(error) => {
                 return Err(LogError::Parse {
                     path: path.to_owned(),
                     line: i + 1,
-                    source,
+                    error,
                 })
             }
         }

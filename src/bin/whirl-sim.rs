@@ -79,7 +79,7 @@ async fn main() -> std::process::ExitCode {
     match run(Cli::parse()).await {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", whirl::error_message(e.as_ref()));
+            eprintln!("error: {e:#}");
             std::process::ExitCode::FAILURE
         }
     }

@@ -154,20 +154,20 @@ pub struct Cut {
 #[derive(Debug, thiserror::Error)]
 pub enum JobError {
     /// The file could not be read.
-    #[error("cannot read {path}: {source}")]
+    #[error("cannot read {path}: {error}")]
     Read {
         /// The file.
         path: PathBuf,
         /// Why.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// TOML syntax or schema.
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Parse {
         /// The file.
         path: PathBuf,
         /// Why (with line and column).
-        source: Box<toml::de::Error>,
+        error: Box<toml::de::Error>,
     },
     /// A value out of its range.
     #[error("{key} = {value}: {why}")]
@@ -183,24 +183,32 @@ pub enum JobError {
     #[error("[groove.profile]: {0}")]
     ProfileSpec(String),
     /// Profile points are wrong.
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Points {
         /// The points file.
         path: PathBuf,
         /// What is wrong and where.
-        source: PointsError,
+        error: PointsError,
     },
     /// Standard dimensions are wrong.
     #[error("[groove.profile] standard: {0}")]
-    Standard(#[from] StandardError),
+    Standard(StandardError),
+}
+
+/// A standard's dimensions, in the words of its own error (printed whole, not as a
+/// separate cause).
+impl From<StandardError> for JobError {
+    fn from(error: StandardError) -> JobError {
+        JobError::Standard(error)
+    }
 }
 
 impl Job {
     /// Read and check a job file, and the profile points it names.
     pub fn load(path: &Path) -> Result<Job, JobError> {
-        let text = std::fs::read_to_string(path).map_err(|source| JobError::Read {
+        let text = std::fs::read_to_string(path).map_err(|error| JobError::Read {
             path: path.to_owned(),
-            source,
+            error,
         })?;
         Job::from_toml(&text, path)
     }
@@ -208,9 +216,9 @@ impl Job {
     /// Read and check a job from its TOML text; `path` is where the text came from, named in
     /// errors, and its folder is where a profile's points file is read from.
     pub fn from_toml(text: &str, path: &Path) -> Result<Job, JobError> {
-        let file: JobFile = toml::from_str(text).map_err(|source| JobError::Parse {
+        let file: JobFile = toml::from_str(text).map_err(|error| JobError::Parse {
             path: path.to_owned(),
-            source: Box::new(source),
+            error: Box::new(error),
         })?;
         file.validate()?;
         let profile = file.profile(path.parent().unwrap_or(Path::new("")))?;
@@ -384,17 +392,17 @@ impl JobFile {
                     )));
                 }
                 let path = dir.join(file);
-                let text = std::fs::read_to_string(&path).map_err(|source| JobError::Read {
+                let text = std::fs::read_to_string(&path).map_err(|error| JobError::Read {
                     path: path.clone(),
-                    source,
+                    error,
                 })?;
                 let section = match spec.section.unwrap_or(SectionSpec::Transverse) {
                     SectionSpec::Transverse => Section::Transverse,
                     SectionSpec::Axial => Section::Axial,
                 };
-                let points_err = |source| JobError::Points {
+                let points_err = |error| JobError::Points {
                     path: path.clone(),
-                    source,
+                    error,
                 };
                 let rows = points::read_csv(&text).map_err(points_err)?;
                 points::profile(

@@ -224,21 +224,21 @@ pub struct MachineProfile {
 #[derive(Debug, Error)]
 pub enum ProfileError {
     /// The file could not be read.
-    #[error("cannot read machine profile {}: {source}", path.display())]
+    #[error("cannot read machine profile {}: {error}", path.display())]
     Read {
         /// The file.
         path: PathBuf,
         /// The I/O error.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The TOML is malformed or does not fit the schema (toml's message names the key
     /// and the line).
-    #[error("machine profile {origin}: {source}")]
+    #[error("machine profile {origin}: {error}")]
     Toml {
         /// The file (or what the text came from).
         origin: String,
         /// The TOML error.
-        source: toml::de::Error,
+        error: toml::de::Error,
     },
     /// A value is out of range.
     #[error("machine profile {origin}: {key}: {problem}")]
@@ -255,9 +255,9 @@ pub enum ProfileError {
 impl MachineProfile {
     /// Loads and validates a profile file.
     pub fn load(path: &Path) -> Result<MachineProfile, ProfileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ProfileError::Read {
+        let text = std::fs::read_to_string(path).map_err(|error| ProfileError::Read {
             path: path.to_owned(),
-            source,
+            error,
         })?;
         MachineProfile::from_toml(&text, &path.display().to_string())
     }
@@ -273,11 +273,10 @@ impl MachineProfile {
 
     /// Parses and validates a profile; `origin` names the text's source in errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<MachineProfile, ProfileError> {
-        let profile: MachineProfile =
-            toml::from_str(text).map_err(|source| ProfileError::Toml {
-                origin: origin.to_owned(),
-                source,
-            })?;
+        let profile: MachineProfile = toml::from_str(text).map_err(|error| ProfileError::Toml {
+            origin: origin.to_owned(),
+            error,
+        })?;
         profile
             .validate()
             .map_err(|(key, problem)| ProfileError::Invalid {

@@ -140,13 +140,13 @@ pub struct DryRunReport {
 pub enum DryRunError {
     /// The job's groove cannot be measured.
     #[error("the simulator's Δ guard: {0}")]
-    Guard(#[from] CheckError),
+    Guard(CheckError),
     /// The simulated controller cannot be built for the machine.
     #[error("the simulated controller: {0}")]
-    Controller(#[from] whirl_sim::ConfigError),
+    Controller(whirl_sim::ConfigError),
     /// No pseudo-terminal.
     #[error("cannot open a pseudo-terminal for the simulator: {0}")]
-    Pty(#[source] tokio_serial::Error),
+    Pty(tokio_serial::Error),
     /// The program asks more of the machine than it has, or cannot be read (checked
     /// before anything runs).
     #[error(transparent)]
@@ -158,7 +158,7 @@ pub enum DryRunError {
     #[error("the simulator stopped mid-run: {0}")]
     Simulator(std::io::Error),
     /// The executed-path log.
-    #[error("executed-path log: {0}")]
+    #[error(transparent)]
     Log(#[from] LogError),
     /// The program cannot go through the Modbus register map.
     #[error(transparent)]
@@ -205,9 +205,10 @@ fn guarded_controller(
     machine: &MachineProfile,
     options: ControllerOptions,
 ) -> Result<(Controller, usize), DryRunError> {
-    let guard = DeltaGuard::new(job, machine)?;
+    let guard = DeltaGuard::new(job, machine).map_err(DryRunError::Guard)?;
     let points = guard.points();
-    let mut controller = Controller::new(&simulator::machine(machine), options)?;
+    let mut controller =
+        Controller::new(&simulator::machine(machine), options).map_err(DryRunError::Controller)?;
     controller.set_guard(Box::new(guard));
     Ok((controller, points))
 }
@@ -523,7 +524,8 @@ async fn over_modbus(
             watchdog_timeout_ms: DRY_RUN_WATCHDOG_MS,
             ..BankOptions::default()
         },
-    )?;
+    )
+    .map_err(DryRunError::Controller)?;
     let bank = std::sync::Arc::new(std::sync::Mutex::new(bank));
     let scale = options.time_scale.unwrap_or(MODBUS_TIME_SCALE);
     let clock = ClockOptions {
@@ -675,7 +677,7 @@ async fn over_can(
     session.sdo_timeout = session.sdo_timeout.max(CAN_HOST_PATIENCE);
     session.heartbeat_timeout = session.heartbeat_timeout.max(CAN_HOST_PATIENCE);
     let counts_per_unit = drives.counts_per_unit();
-    let guard = DeltaGuard::new(job, machine)?;
+    let guard = DeltaGuard::new(job, machine).map_err(DryRunError::Guard)?;
     let points = guard.points();
     let mut bus = Bus::new(BusConfig::for_machine(
         &simulator::machine(machine),

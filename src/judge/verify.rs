@@ -47,7 +47,7 @@ pub struct VerifiedReport<'a> {
 pub enum CheckError {
     /// The program text.
     #[error("program: {0}")]
-    Parse(#[from] ParseError),
+    Parse(ParseError),
     /// The motion or the target.
     #[error(transparent)]
     Verify(#[from] VerifyError),
@@ -62,7 +62,8 @@ pub fn verify(
     picture: bool,
 ) -> Result<Verification, CheckError> {
     let target = target(job)?;
-    let motion = Motion::new(&read_program(program, machine.x_diameter())?)?;
+    let program = read_program(program, machine.x_diameter()).map_err(CheckError::Parse)?;
+    let motion = Motion::new(&program)?;
     let m: Measurement = target.measure(&motion)?;
     let delta = job.cut.delta;
     let svg = picture.then(|| {

@@ -16,7 +16,7 @@ use crate::config::machine::MachineProfile;
 use crate::geometry::linkage::{Linkage, Ring, Whirling};
 use crate::geometry::profile::{ConcaveStretch, Profile};
 use crate::plan::table::{Table, TableError};
-use crate::post::gcode::format::decimals_for;
+use crate::post::gcode::format::{decimals_for, FormatError};
 use crate::post::gcode::writer::{self, PostSettings};
 use crate::program::limits::{check_limits, LimitError};
 use crate::program::timing::cycle_time_s;
@@ -86,9 +86,17 @@ pub enum PlanError {
     /// Concave stretches the nose cannot follow.
     #[error("{}", concave_message(.0, *.1))]
     Concave(Vec<ConcaveStretch>, f64),
-    /// The ring cannot enclose or clear the work.
-    #[error("{0}")]
-    Clearance(String),
+    /// An internal-whirling ring too small to enclose the work.
+    #[error(
+        "the ring is too small to enclose the work: R·cos δ − r = {reach:.3} mm does not \
+         clear the outer radius {rho_max:.3} mm"
+    )]
+    Clearance {
+        /// How far the ring reaches from its centre when tilted, R·cos δ − r, mm.
+        reach: f64,
+        /// The work's outer radius, mm.
+        rho_max: f64,
+    },
     /// The linkage failed somewhere on the profile.
     #[error("{cause}{hint}")]
     Table {
@@ -128,7 +136,7 @@ pub enum PlanError {
     },
     /// Numbers cannot be written precisely enough.
     #[error("number format: {0}")]
-    Format(String),
+    Format(FormatError),
     /// The machine cannot run it.
     #[error("machine limits: move {index} of the planned path: {limit}", index = .limit.index())]
     Limits {
@@ -209,9 +217,8 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         .fold(x_clear.abs(), f64::max);
     // The linked motion's turns, and one for where C starts.
     let c_max = 360.0 * ((z_to - z_from) / feed + 1.0);
-    let linear = decimals_for(share / 2.0).map_err(|e| PlanError::Format(e.to_string()))?;
-    let mut angular =
-        decimals_for((share / 2.0) / mm_per_deg).map_err(|e| PlanError::Format(e.to_string()))?;
+    let linear = decimals_for(share / 2.0).map_err(PlanError::Format)?;
+    let mut angular = decimals_for((share / 2.0) / mm_per_deg).map_err(PlanError::Format)?;
     if let Some(digits) = machine.dialect.max_number_digits() {
         let whole = c_max.log10().floor() as usize + 1;
         angular = angular.min(digits.saturating_sub(whole) as u32);
@@ -319,11 +326,10 @@ fn clear_x(ring: &Ring, rho_max: f64) -> Result<f64, PlanError> {
         Whirling::Internal => {
             let room = ring.radius * ring.installation.cos() - ring.nose - rho_max;
             if room <= 0.0 {
-                return Err(PlanError::Clearance(format!(
-                    "the ring is too small to enclose the work: R·cos δ − r = {:.3} mm does not \
-                     clear the outer radius {rho_max:.3} mm",
-                    ring.radius * ring.installation.cos() - ring.nose
-                )));
+                return Err(PlanError::Clearance {
+                    reach: ring.radius * ring.installation.cos() - ring.nose,
+                    rho_max,
+                });
             }
             Ok(0.0)
         }

@@ -36,7 +36,7 @@ pub struct Table {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum TableError {
     /// A profile point has no pose.
-    #[error("profile point ({x:.4}, {y:.4}) (polar angle {angle_deg:.3}°): {source}")]
+    #[error("profile point ({x:.4}, {y:.4}) (polar angle {angle_deg:.3}°): {error}")]
     Linkage {
         /// Transverse x of the point.
         x: f64,
@@ -45,7 +45,7 @@ pub enum TableError {
         /// Its polar angle, degrees.
         angle_deg: f64,
         /// Why.
-        source: LinkageError,
+        error: LinkageError,
     },
     /// The phase turns back along the profile: the ring meets the groove on another branch.
     #[error(
@@ -102,11 +102,11 @@ impl Table {
                     pos: point.pos,
                     contact,
                 })
-                .map_err(|source| TableError::Linkage {
+                .map_err(|error| TableError::Linkage {
                     x: point.pos.x,
                     y: point.pos.y,
                     angle_deg: point.pos.to_angle().to_degrees(),
-                    source,
+                    error,
                 })
         };
         // Start: every piece boundary and an even spread inside each piece.
@@ -305,10 +305,10 @@ mod tests {
     fn a_point_without_pose_is_named() {
         // A 10 mm ring on a 25–35 mm work, tilted 20° on a 5 mm lead, runs out of reach.
         let e = Table::build(&lobe(5.0), &linkage(10.0, 20.0, 5.0), 1e-4).unwrap_err();
-        let TableError::Linkage { source, .. } = &e else {
+        let TableError::Linkage { error, .. } = &e else {
             panic!("{e}")
         };
-        assert!(matches!(source, LinkageError::OutOfReach { .. }), "{e}");
+        assert!(matches!(error, LinkageError::OutOfReach { .. }), "{e}");
         assert!(e.to_string().contains("profile point ("), "{e}");
     }
 }

@@ -169,20 +169,20 @@ impl CanOutcome {
 #[derive(Debug, Error)]
 pub enum CanError {
     /// The port or interface could not be opened.
-    #[error("cannot open {link}: {source}")]
+    #[error("cannot open {link}: {error}")]
     Open {
         /// The link.
         link: String,
         /// Why.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// Reading or writing failed.
-    #[error("{link}: {source}")]
+    #[error("{link}: {error}")]
     Io {
         /// The link.
         link: String,
         /// Why.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The slcan adapter answered a command with BEL.
     #[error("the slcan adapter refused {command}")]
@@ -208,7 +208,7 @@ pub enum CanError {
     },
     /// The program cannot be sampled into set-points.
     #[error("set-points: {0}")]
-    Sample(#[from] SampleError),
+    Sample(SampleError),
     /// The session's configuration.
     #[error(transparent)]
     Session(#[from] crate::protocol::canopen::session::SessionError),
@@ -216,7 +216,7 @@ pub enum CanError {
     #[error("a SYNC-locked clock needs an slcan adapter's acknowledgements; {0} has none")]
     Lockstep(String),
     /// The executed-path log.
-    #[error("executed-path log: {0}")]
+    #[error(transparent)]
     Log(#[from] LogError),
 }
 
@@ -253,7 +253,7 @@ impl Port {
                     .open_native_async()
                     .map_err(|e| CanError::Open {
                         link: name.clone(),
-                        source: e.into(),
+                        error: e.into(),
                     })?;
                 let mut port = Port::Slcan {
                     stream,
@@ -277,7 +277,7 @@ impl Port {
             }
             CanLink::SocketCan { interface } => socketcan::tokio::CanSocket::open(interface)
                 .map(Port::Socket)
-                .map_err(|source| CanError::Open { link: name, source }),
+                .map_err(|error| CanError::Open { link: name, error }),
         }
     }
 
@@ -305,13 +305,10 @@ impl Port {
         let Port::Slcan { stream, .. } = self else {
             unreachable!("only slcan writes bytes");
         };
-        stream
-            .write_all(bytes)
-            .await
-            .map_err(|source| CanError::Io {
-                link: name.to_owned(),
-                source,
-            })
+        stream.write_all(bytes).await.map_err(|error| CanError::Io {
+            link: name.to_owned(),
+            error,
+        })
     }
 
     /// Sends `frames`, in one write on slcan; returns the bytes written.
@@ -330,9 +327,9 @@ impl Port {
                     socket
                         .write_frame(to_socketcan(frame))
                         .await
-                        .map_err(|source| CanError::Io {
+                        .map_err(|error| CanError::Io {
                             link: name.to_owned(),
-                            source,
+                            error,
                         })?;
                 }
                 Ok(16 * frames.len() as u64)
@@ -342,9 +339,9 @@ impl Port {
 
     /// What arrives next (at least one item, unless a read brought only part of a line).
     async fn read(&mut self, name: &str) -> Result<Vec<Incoming>, CanError> {
-        let io = |source| CanError::Io {
+        let io = |error| CanError::Io {
             link: name.to_owned(),
-            source,
+            error,
         };
         match self {
             Port::Slcan {
@@ -491,7 +488,8 @@ pub async fn stream_can(
         program,
         Position::known(start[0], start[1], start[2]),
         &options.sample,
-    )?;
+    )
+    .map_err(CanError::Sample)?;
     let period = setpoints.period;
     let total = setpoints.points.len();
     let mut session = Session::new(options.session.clone(), setpoints)?;

@@ -171,14 +171,14 @@ pub fn rtu_bits(request: &Request, answer: Option<&Result<Response, Exception>>)
 #[derive(Debug, Error)]
 pub enum ModbusError {
     /// The controller could not be reached, `attempts` times in a row.
-    #[error("cannot reach {link} ({attempts} attempts): {source}")]
+    #[error("cannot reach {link} ({attempts} attempts): {error}")]
     Connect {
         /// Where.
         link: String,
         /// How often it was tried.
         attempts: u32,
         /// The last failure.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The program cannot be streamed (a segment rate or a first sequence the map refuses).
     #[error(transparent)]
@@ -201,7 +201,7 @@ pub enum ModbusError {
         answer: String,
     },
     /// The executed-path log.
-    #[error("executed-path log: {0}")]
+    #[error(transparent)]
     Log(#[from] LogError),
 }
 
@@ -497,7 +497,7 @@ async fn connect(link: &ModbusLink, options: &ModbusOptions) -> Result<Context, 
             return Err(ModbusError::Connect {
                 link: link.to_string(),
                 attempts: attempt,
-                source: error,
+                error,
             });
         }
         tokio::time::sleep(wait).await;

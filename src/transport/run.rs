@@ -61,9 +61,9 @@ impl Posted {
     /// Checks the program against `machine`'s travel, speeds and spindle, naming the file
     /// line of the first move that asks too much.
     pub fn check(&self, machine: &MachineProfile) -> Result<(), PreflightError> {
-        check_limits(&self.program, machine).map_err(|source| PreflightError::Limits {
-            line: self.move_lines[source.index()],
-            source,
+        check_limits(&self.program, machine).map_err(|error| PreflightError::Limits {
+            line: self.move_lines[error.index()],
+            error,
         })
     }
 }
@@ -75,12 +75,12 @@ pub enum PreflightError {
     #[error("the program cannot be read: {0}")]
     Parse(ParseError),
     /// The program asks more than the machine allows.
-    #[error("line {line}: the program exceeds the machine's limits: {source}")]
+    #[error("line {line}: the program exceeds the machine's limits: {error}")]
     Limits {
         /// The program line (1-based) of the move that does.
         line: usize,
         /// What it asks.
-        source: LimitError,
+        error: LimitError,
     },
 }
 

@@ -508,3 +508,77 @@ fn a_can_stream_to_a_port_that_does_not_exist_names_it() {
     assert!(message.contains("cannot open slcan adapter"), "{message}");
     assert!(message.contains("no-adapter"), "{message}");
 }
+
+#[test]
+fn each_cause_is_said_once() {
+    let dir = tempfile::tempdir().unwrap();
+    // A points file with a bad number, a missing points file, a job that is not TOML, a
+    // log in a folder that does not exist, an unreadable machine profile: each error and
+    // its causes, printed as one chain, name each thing once.
+    let bad_points = edited(dir.path(), "double-start", |t| t);
+    util::write(dir.path(), "profile.csv", "x,y\n30,0\n29,abc\n");
+    let missing = util::write(
+        dir.path(),
+        "missing.toml",
+        &std::fs::read_to_string(util::example("double-start"))
+            .unwrap()
+            .replace("profile.csv", "nowhere.csv"),
+    );
+    let not_toml = util::write(dir.path(), "broken.toml", "[groove\nlead = ");
+    let nowhere = dir.path().join("no/such/folder/run.jsonl");
+    let example = util::example("double-start");
+    let out = dir.path().join("p.nc");
+    let cases: Vec<Vec<&OsStr>> = vec![
+        vec![
+            OsStr::new("plan"),
+            bad_points.as_os_str(),
+            OsStr::new("-o"),
+            out.as_os_str(),
+        ],
+        vec![
+            OsStr::new("plan"),
+            missing.as_os_str(),
+            OsStr::new("-o"),
+            out.as_os_str(),
+        ],
+        vec![
+            OsStr::new("plan"),
+            not_toml.as_os_str(),
+            OsStr::new("-o"),
+            out.as_os_str(),
+        ],
+        vec![
+            OsStr::new("dry-run"),
+            example.as_os_str(),
+            OsStr::new("--log"),
+            nowhere.as_os_str(),
+        ],
+        vec![
+            OsStr::new("plan"),
+            example.as_os_str(),
+            OsStr::new("--machine"),
+            nowhere.as_os_str(),
+            OsStr::new("-o"),
+            out.as_os_str(),
+        ],
+    ];
+    for args in cases {
+        let message = fails(&args);
+        let line = message.trim_end();
+        assert!(line.starts_with("error: "), "{line}");
+        // No stretch of the message (a cause's text) comes twice.
+        let parts: Vec<&str> = line.split(": ").map(str::trim).collect();
+        for (i, part) in parts.iter().enumerate() {
+            if part.len() > 12 {
+                assert!(
+                    !parts[i + 1..].contains(part),
+                    "{part:?} said twice in {line:?}"
+                );
+            }
+        }
+        for os_error in ["No such file or directory", "invalid digit"] {
+            assert!(line.matches(os_error).count() <= 1, "{line}");
+        }
+    }
+    assert!(!out.exists());
+}

@@ -30,7 +30,7 @@ fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {}", whirl::error_message(e.as_ref()));
+            eprintln!("error: {e:#}");
             ExitCode::FAILURE
         }
     }

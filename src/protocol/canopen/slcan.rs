@@ -225,12 +225,12 @@ pub enum SlcanError {
         found: usize,
     },
     /// An identifier out of its width's range (`t800`, `T20000000`).
-    #[error("{line:?}: {source}")]
+    #[error("{line:?}: {error}")]
     Id {
         /// The line.
         line: String,
         /// What is wrong with it.
-        source: FrameError,
+        error: FrameError,
     },
     /// Bytes before a BEL that do not end in CR: a broken line.
     #[error("unterminated line {line:?} before BEL")]
@@ -359,9 +359,9 @@ fn parse_frame(line: &[u8]) -> Result<Received, SlcanError> {
             })
         }
     };
-    let id_error = |source| SlcanError::Id {
+    let id_error = |error| SlcanError::Id {
         line: escape(line),
-        source,
+        error,
     };
     let id = if extended {
         CanId::extended(raw).map_err(id_error)?

@@ -190,11 +190,11 @@ fn errors_name_the_line_and_byte() {
             }),
             Err(SlcanError::Id {
                 line: "t8000".into(),
-                source: FrameError::StandardId(0x800)
+                error: FrameError::StandardId(0x800)
             }),
             Err(SlcanError::Id {
                 line: "T200000000".into(),
-                source: FrameError::ExtendedId(0x2000_0000)
+                error: FrameError::ExtendedId(0x2000_0000)
             }),
             Err(SlcanError::Truncated { line: "t1".into() }),
             Err(SlcanError::Unknown { line: "zz".into() }),
