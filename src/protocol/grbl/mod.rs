@@ -8,7 +8,8 @@
 //!
 //! - [`streamer`]: streaming a G-code program to a grbl/grblHAL controller over a serial line
 //!   by character counting ([`Streamer`]), with status polling, feed hold, soft reset,
-//!   error and alarm handling, and the bookkeeping that says where to resume.
+//!   error and alarm handling, the rule that says when the motion after the last line has
+//!   finished, and the bookkeeping that says where to resume.
 //! - [`response`]: the controller's output, line by line: `ok`, `error:N`, `ALARM:N`,
 //!   status reports, feedback messages, banners.
 //! - [`resume`]: the modal state a program is in at a line, and the preamble that restores

@@ -184,12 +184,12 @@ pub enum ResumeError {
         len: usize,
     },
     /// A line before the resume line cannot be read, so the modes it sets are unknown.
-    #[error("cannot replay the modal state: {source}")]
+    #[error("cannot replay the modal state: {error}")]
     Unreadable {
         /// 0-based index of the line.
         index: usize,
         /// Why (its line number is `index + 1`).
-        source: ParseError,
+        error: ParseError,
     },
     /// G92 on an axis other than C.
     #[error("program line {}: G92 on {axis}: only a G92 offset of C is restored on resume", .index + 1)]
@@ -235,7 +235,7 @@ impl ModalState {
         let mut state = ModalState::default();
         for (index, text) in before.iter().enumerate() {
             let line = parse_line(text.as_ref(), index + 1)
-                .map_err(|source| ResumeError::Unreadable { index, source })?;
+                .map_err(|error| ResumeError::Unreadable { index, error })?;
             state.apply(&line, index)?;
         }
         Ok(state)
