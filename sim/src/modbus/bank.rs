@@ -42,13 +42,87 @@ use crate::report::MachineState;
 
 use super::{crc16, Exception, Request, Response, WordOrder};
 
-// Addresses (docs/modbus.md, "Address map").
-const STATUS: u16 = 16;
+// Addresses (docs/modbus.md, "Address map"). Each number of the map is written once, here;
+// the tests check them against tests/data/modbus-golden.json.
+const MAGIC_0: u16 = 0;
+const MAGIC_1: u16 = 1;
+const MAP_VERSION: u16 = 2;
+const SLOT_COUNT: u16 = 3;
+const SLOT_SIZE: u16 = 4;
+const WORD_ORDER: u16 = 5;
+const MAX_SEGMENT_RATE: u16 = 6;
+const WATCHDOG_TIMEOUT: u16 = 7;
+/// The first status register: registers `STATE..CONTROL` are [`Bank::status`]'s.
+const STATE: u16 = 16;
+const ALARM_CODE: u16 = 17;
+const ALARM_SEQ: u16 = 18;
+const ALARM_DETAIL: u16 = 20;
+const TAIL: u16 = 21;
+const EXECUTED_SEQ: u16 = 22;
+const POS_X: u16 = 24;
+const POS_Z: u16 = 26;
+const POS_C: u16 = 28;
 const CONTROL: u16 = 32;
 const HEAD: u16 = 33;
 const WATCHDOG: u16 = 34;
 const RING: u16 = 256;
+/// Registers in the status block, `STATE..CONTROL`.
+const STATUS_LEN: usize = (CONTROL - STATE) as usize;
+
+// Identification values.
+/// `MAGIC_0`, `MAGIC_1`: ASCII "WH", "RL".
+const MAGIC: [u16; 2] = [0x5748, 0x524C];
+/// `MAP_VERSION`.
+const VERSION: u16 = 1;
+/// Registers per slot (`SLOT_SIZE`).
 const SLOT: u16 = 16;
+/// Slots a ring may have.
+const SLOTS: std::ops::RangeInclusive<u16> = 2..=64;
+
+// Modbus's own limits: registers one FC03 may read, one FC16 may write.
+const MAX_READ: u16 = 125;
+const MAX_WRITE: usize = 123;
+
+// A slot's registers, from its first ("Slot layout").
+const SLOT_SEQ: usize = 0;
+const SLOT_KIND: usize = 2;
+const SLOT_X: usize = 4;
+const SLOT_Z: usize = 6;
+const SLOT_C: usize = 8;
+const SLOT_PARAM: usize = 12;
+const SLOT_CRC: usize = 15;
+/// The reserved registers, which hold 0.
+const SLOT_RESERVED: [usize; 2] = [3, 14];
+
+// Segment kinds, the low byte of KIND.
+const KIND_MASK: u16 = 0x00FF;
+const KIND_LINKED: u16 = 1;
+const KIND_RAPID: u16 = 2;
+const KIND_FEED: u16 = 3;
+const KIND_DWELL: u16 = 4;
+const KIND_SPINDLE_ON: u16 = 5;
+const KIND_SPINDLE_OFF: u16 = 6;
+const KIND_PROGRAM_END: u16 = 7;
+
+// Axis flags, the high byte of KIND, in the order X, Z, C.
+const FLAG_X: u16 = 1 << 8;
+const FLAG_Z: u16 = 1 << 9;
+const FLAG_C: u16 = 1 << 10;
+const FLAGS: [u16; 3] = [FLAG_X, FLAG_Z, FLAG_C];
+
+// Units ("Units"), as decimals of the quantity written in G-code.
+/// X and Z: 0.1 µm, 10⁻⁴ mm.
+const LINEAR_DECIMALS: u32 = 4;
+/// C: 10⁻⁴ °.
+const ANGULAR_DECIMALS: u32 = 4;
+/// Feed (mm/min) and spindle speed (rev/min): thousandths.
+const MILLI_DECIMALS: u32 = 3;
+/// Durations: µs, 10⁻⁶ s.
+const MICRO_DECIMALS: u32 = 6;
+/// A linked move's duration, µs, per minute of inverse time.
+const MICROS_PER_MINUTE: u128 = 60_000_000;
+/// Decimals of a linked move's inverse-time F.
+const INVERSE_TIME_DECIMALS: u32 = 6;
 
 // Control word bits.
 const RUN: u16 = 1;
@@ -119,19 +193,21 @@ enum Segment {
 impl Segment {
     /// Reads a slot whose CRC has been checked; `None` if it is not a valid segment.
     fn parse(slot: &[u16], order: WordOrder) -> Option<Segment> {
-        let kind = slot[2] & 0x00FF;
-        let flags = slot[2] >> 8;
-        if slot[3] != 0 || slot[14] != 0 || flags & !0b111 != 0 {
+        let all = FLAG_X | FLAG_Z | FLAG_C;
+        let kind = slot[SLOT_KIND] & KIND_MASK;
+        let flags = slot[SLOT_KIND] & !KIND_MASK;
+        if SLOT_RESERVED.iter().any(|&k| slot[k] != 0) || flags & !all != 0 {
             return None;
         }
-        let x = order.value(&slot[4..6]) as u32 as i32;
-        let z = order.value(&slot[6..8]) as u32 as i32;
-        let c = order.value(&slot[8..12]) as i64;
-        let param = order.value(&slot[12..14]) as u32;
+        let field = |at: usize, words: usize| order.value(&slot[at..at + words]);
+        let x = field(SLOT_X, 2) as u32 as i32;
+        let z = field(SLOT_Z, 2) as u32 as i32;
+        let c = field(SLOT_C, 4) as i64;
+        let param = field(SLOT_PARAM, 2) as u32;
         let values = [i64::from(x), i64::from(z), c];
         let mut axes = [None; 3];
         for (k, axis) in axes.iter_mut().enumerate() {
-            if flags & (1 << k) != 0 {
+            if flags & FLAGS[k] != 0 {
                 *axis = Some(values[k]);
             } else if values[k] != 0 {
                 return None;
@@ -139,16 +215,16 @@ impl Segment {
         }
         let no_axes = flags == 0;
         let segment = match kind {
-            1 if flags == 0b111 && param >= 1 => Segment::Linked {
+            KIND_LINKED if flags == all && param >= 1 => Segment::Linked {
                 xzc: values,
                 micros: param,
             },
-            2 if param == 0 => Segment::Rapid { axes },
-            3 if param >= 1 => Segment::Feed { axes, milli: param },
-            4 if no_axes => Segment::Dwell { micros: param },
-            5 if no_axes => Segment::SpindleOn { milli: param },
-            6 if no_axes && param == 0 => Segment::SpindleOff,
-            7 if no_axes && param == 0 => Segment::ProgramEnd,
+            KIND_RAPID if param == 0 => Segment::Rapid { axes },
+            KIND_FEED if param >= 1 => Segment::Feed { axes, milli: param },
+            KIND_DWELL if no_axes => Segment::Dwell { micros: param },
+            KIND_SPINDLE_ON if no_axes => Segment::SpindleOn { milli: param },
+            KIND_SPINDLE_OFF if no_axes && param == 0 => Segment::SpindleOff,
+            KIND_PROGRAM_END if no_axes && param == 0 => Segment::ProgramEnd,
             _ => return None,
         };
         Some(segment)
@@ -165,20 +241,27 @@ impl Segment {
     /// The G-code line, with N word `n`.
     fn line(&self, n: u32) -> String {
         let words = |axes: &[Option<i64>; 3]| -> String {
+            let letters = [
+                ('X', LINEAR_DECIMALS),
+                ('Z', LINEAR_DECIMALS),
+                ('C', ANGULAR_DECIMALS),
+            ];
             axes.iter()
-                .zip(['X', 'Z', 'C'])
-                .filter_map(|(v, letter)| v.map(|v| format!(" {letter}{}", decimal(v, 4))))
+                .zip(letters)
+                .filter_map(|(v, (letter, decimals))| {
+                    v.map(|v| format!(" {letter}{}", decimal(v, decimals)))
+                })
                 .collect()
         };
         match self {
             Segment::Linked { xzc, micros } => {
                 // F = 1 / minutes = 60 000 000 / µs, to 10⁻⁶.
-                let f =
-                    (60_000_000u128 * 1_000_000 + u128::from(*micros) / 2) / u128::from(*micros);
+                let scale = 10u128.pow(INVERSE_TIME_DECIMALS);
+                let f = (MICROS_PER_MINUTE * scale + u128::from(*micros) / 2) / u128::from(*micros);
                 format!(
                     "N{n} G93 G1{} F{}",
                     words(&xzc.map(Some)),
-                    decimal(f as i64, 6)
+                    decimal(f as i64, INVERSE_TIME_DECIMALS)
                 )
             }
             Segment::Rapid { axes } => format!("N{n} G0{}", words(axes)),
@@ -186,11 +269,15 @@ impl Segment {
                 format!(
                     "N{n} G94 G1{} F{}",
                     words(axes),
-                    decimal(i64::from(*milli), 3)
+                    decimal(i64::from(*milli), MILLI_DECIMALS)
                 )
             }
-            Segment::Dwell { micros } => format!("N{n} G4 P{}", decimal(i64::from(*micros), 6)),
-            Segment::SpindleOn { milli } => format!("N{n} M3 S{}", decimal(i64::from(*milli), 3)),
+            Segment::Dwell { micros } => {
+                format!("N{n} G4 P{}", decimal(i64::from(*micros), MICRO_DECIMALS))
+            }
+            Segment::SpindleOn { milli } => {
+                format!("N{n} M3 S{}", decimal(i64::from(*milli), MILLI_DECIMALS))
+            }
             Segment::SpindleOff => format!("N{n} M5"),
             Segment::ProgramEnd => format!("N{n} M2"),
         }
@@ -271,7 +358,7 @@ impl Bank {
                 reason,
             })
         };
-        if !(2..=64).contains(&options.slots) {
+        if !SLOTS.contains(&options.slots) {
             return bad("slots", options.slots, "must be 2 to 64");
         }
         if options.watchdog_timeout_ms == 0 {
@@ -365,7 +452,7 @@ impl Bank {
     // ---- reads ----
 
     fn read(&self, address: u16, count: u16) -> Result<Vec<u16>, Exception> {
-        if count == 0 || count > 125 {
+        if count == 0 || count > MAX_READ {
             return Err(Exception::IllegalDataValue);
         }
         let status = self.status();
@@ -379,21 +466,18 @@ impl Bank {
     }
 
     /// One register's value; `None` if unmapped.
-    fn register(&self, address: u16, status: &[u16; 16]) -> Option<u16> {
+    fn register(&self, address: u16, status: &[u16; STATUS_LEN]) -> Option<u16> {
         let o = &self.options;
         Some(match address {
-            0 => 0x5748,
-            1 => 0x524C,
-            2 => 1,
-            3 => o.slots,
-            4 => SLOT,
-            5 => match o.word_order {
-                WordOrder::HighFirst => 0,
-                WordOrder::LowFirst => 1,
-            },
-            6 => o.max_segment_rate,
-            7 => o.watchdog_timeout_ms,
-            STATUS..CONTROL => status[usize::from(address - STATUS)],
+            MAGIC_0 => MAGIC[0],
+            MAGIC_1 => MAGIC[1],
+            MAP_VERSION => VERSION,
+            SLOT_COUNT => o.slots,
+            SLOT_SIZE => SLOT,
+            WORD_ORDER => o.word_order.register(),
+            MAX_SEGMENT_RATE => o.max_segment_rate,
+            WATCHDOG_TIMEOUT => o.watchdog_timeout_ms,
+            STATE..CONTROL => status[usize::from(address - STATE)],
             CONTROL => self.control,
             HEAD => self.head,
             WATCHDOG => self.watchdog,
@@ -402,8 +486,8 @@ impl Bank {
         })
     }
 
-    /// Registers 16–31.
-    fn status(&self) -> [u16; 16] {
+    /// Registers `STATE..CONTROL` (16–31).
+    fn status(&self) -> [u16; STATUS_LEN] {
         let order = self.options.word_order;
         let alarm = self.alarm.unwrap_or(Alarm {
             code: 0,
@@ -411,17 +495,23 @@ impl Bank {
             detail: 0,
         });
         let position = self.controller.position();
-        let linear = |mm: f64| u64::from((mm * 1e4).round() as i32 as u32);
-        let mut r = [0u16; 16];
-        r[0] = self.state();
-        r[1] = alarm.code;
-        r[2..4].copy_from_slice(&order.place::<2>(u64::from(alarm.sequence)));
-        r[4] = alarm.detail;
-        r[5] = self.tail;
-        r[6..8].copy_from_slice(&order.place::<2>(u64::from(self.executed)));
-        r[8..10].copy_from_slice(&order.place::<2>(linear(position.x)));
-        r[10..12].copy_from_slice(&order.place::<2>(linear(position.z)));
-        r[12..16].copy_from_slice(&order.place::<4>((position.c * 1e4).round() as i64 as u64));
+        let units = |value: f64, decimals: u32| (value * 10f64.powi(decimals as i32)).round();
+        let linear = |mm: f64| u64::from(units(mm, LINEAR_DECIMALS) as i32 as u32);
+        let mut r = [0u16; STATUS_LEN];
+        let mut put = |register: u16, words: &[u16]| {
+            let at = usize::from(register - STATE);
+            r[at..at + words.len()].copy_from_slice(words);
+        };
+        put(STATE, &[self.state()]);
+        put(ALARM_CODE, &[alarm.code]);
+        put(ALARM_SEQ, &order.place::<2>(u64::from(alarm.sequence)));
+        put(ALARM_DETAIL, &[alarm.detail]);
+        put(TAIL, &[self.tail]);
+        put(EXECUTED_SEQ, &order.place::<2>(u64::from(self.executed)));
+        put(POS_X, &order.place::<2>(linear(position.x)));
+        put(POS_Z, &order.place::<2>(linear(position.z)));
+        let c = units(position.c, ANGULAR_DECIMALS) as i64 as u64;
+        put(POS_C, &order.place::<4>(c));
         r
     }
 
@@ -463,7 +553,7 @@ impl Bank {
     }
 
     fn write_multiple(&mut self, address: u16, values: &[u16]) -> Result<(), Exception> {
-        if values.is_empty() || values.len() > 123 {
+        if values.is_empty() || values.len() > MAX_WRITE {
             return Err(Exception::IllegalDataValue);
         }
         let last = u32::from(address) + values.len() as u32 - 1;
@@ -555,11 +645,14 @@ impl Bank {
             let at = usize::from((self.head + k) % n * SLOT);
             let slot = &self.ring[at..at + usize::from(SLOT)];
             let expected = last.map(|s| s.checked_add(1).unwrap_or(1));
-            let bytes: Vec<u8> = slot[..15].iter().flat_map(|r| r.to_be_bytes()).collect();
-            if crc16(&bytes) != slot[15] {
+            let bytes: Vec<u8> = slot[..SLOT_CRC]
+                .iter()
+                .flat_map(|r| r.to_be_bytes())
+                .collect();
+            if crc16(&bytes) != slot[SLOT_CRC] {
                 return Err(self.refuse(ALARM_CRC, expected));
             }
-            let sequence = order.value(&slot[0..2]) as u32;
+            let sequence = order.value(&slot[SLOT_SEQ..SLOT_SEQ + 2]) as u32;
             if sequence == 0 || expected.is_some_and(|e| e != sequence) {
                 return Err(self.refuse(ALARM_SEQUENCE, expected));
             }

@@ -108,17 +108,24 @@ impl Exception {
     }
 }
 
-/// How the bank spreads 32- and 64-bit values over registers (`WORD_ORDER`).
+/// How the bank spreads 32- and 64-bit values over registers (`WORD_ORDER`); the
+/// discriminants are the register's values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[repr(u16)]
 pub enum WordOrder {
     /// Most significant word at the lowest address (0).
     #[default]
-    HighFirst,
+    HighFirst = 0,
     /// Least significant word at the lowest address (1).
-    LowFirst,
+    LowFirst = 1,
 }
 
 impl WordOrder {
+    /// The `WORD_ORDER` register's value.
+    fn register(self) -> u16 {
+        self as u16
+    }
+
     /// The words of `value` (`N` of them, the most significant first) in address order.
     fn place<const N: usize>(self, value: u64) -> [u16; N] {
         let mut words = [0u16; N];

@@ -125,6 +125,25 @@ pub mod flag {
     pub const C: u16 = 1 << 10;
 }
 
+/// The registers of a slot, as offsets from its first. The two not named (3 and 14) are
+/// reserved and hold 0.
+pub mod offset {
+    /// `SEQ`, u32: the sequence number.
+    pub const SEQ: usize = 0;
+    /// `KIND`: the segment kind in the low byte, the axis flags in the high byte.
+    pub const KIND: usize = 2;
+    /// `X`, i32.
+    pub const X: usize = 4;
+    /// `Z`, i32.
+    pub const Z: usize = 6;
+    /// `C`, i64.
+    pub const C: usize = 8;
+    /// `PARAM`, u32: duration, feed, dwell or spindle speed, by kind.
+    pub const PARAM: usize = 12;
+    /// `CRC`: CRC-16/MODBUS of the registers before it.
+    pub const CRC: usize = 15;
+}
+
 /// Why registers could not be encoded or decoded, or a program carried.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum MapError {
@@ -151,36 +170,34 @@ pub enum MapError {
     },
 }
 
-/// How a 32- or 64-bit value is spread over consecutive registers.
+/// How a 32- or 64-bit value is spread over consecutive registers. The discriminants are
+/// the `WORD_ORDER` register's values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[repr(u16)]
 pub enum WordOrder {
     /// Most significant word at the lowest address (register value 0, the default).
     #[default]
-    HighFirst,
+    HighFirst = 0,
     /// Least significant word at the lowest address (register value 1).
-    LowFirst,
+    LowFirst = 1,
 }
 
 impl WordOrder {
     /// From the `WORD_ORDER` register.
     pub fn from_register(value: u16) -> Result<WordOrder, MapError> {
-        match value {
-            0 => Ok(WordOrder::HighFirst),
-            1 => Ok(WordOrder::LowFirst),
-            _ => Err(MapError::Register {
+        [WordOrder::HighFirst, WordOrder::LowFirst]
+            .into_iter()
+            .find(|order| order.register() == value)
+            .ok_or(MapError::Register {
                 register: reg::WORD_ORDER,
                 value,
                 reason: "word order must be 0 (high word first) or 1 (low word first)",
-            }),
-        }
+            })
     }
 
     /// The `WORD_ORDER` register's value.
     pub fn register(self) -> u16 {
-        match self {
-            WordOrder::HighFirst => 0,
-            WordOrder::LowFirst => 1,
-        }
+        self as u16
     }
 
     /// `value` as two registers, in address order.
@@ -282,13 +299,14 @@ impl Segment {
             Segment::ProgramEnd => (kind::PROGRAM_END, None, None, None, 0),
         };
         let mut slot = [0u16; SLOT_SIZE as usize];
-        slot[0..2].copy_from_slice(&order.u32_words(sequence));
-        slot[2] = kind;
-        slot[4..6].copy_from_slice(&order.u32_words(x.unwrap_or(0) as u32));
-        slot[6..8].copy_from_slice(&order.u32_words(z.unwrap_or(0) as u32));
-        slot[8..12].copy_from_slice(&order.i64_words(c.unwrap_or(0)));
-        slot[12..14].copy_from_slice(&order.u32_words(param));
-        slot[15] = slot_crc(&slot[..15]);
+        let mut put = |at: usize, words: &[u16]| slot[at..at + words.len()].copy_from_slice(words);
+        put(offset::SEQ, &order.u32_words(sequence));
+        put(offset::KIND, &[kind]);
+        put(offset::X, &order.u32_words(x.unwrap_or(0) as u32));
+        put(offset::Z, &order.u32_words(z.unwrap_or(0) as u32));
+        put(offset::C, &order.i64_words(c.unwrap_or(0)));
+        put(offset::PARAM, &order.u32_words(param));
+        slot[offset::CRC] = slot_crc(&slot[..offset::CRC]);
         slot
     }
 }
@@ -332,52 +350,54 @@ impl Identification {
     /// every value is one the map allows.
     pub fn decode(registers: &[u16]) -> Result<Identification, MapError> {
         let r = exact::<{ reg::IDENT_LEN as usize }>(registers, "identification block")?;
+        let at = |register: u16| r[usize::from(register - reg::MAGIC)];
         let bad = |register: u16, reason| {
             Err(MapError::Register {
                 register,
-                value: r[usize::from(register)],
+                value: at(register),
                 reason,
             })
         };
-        if r[0] != MAGIC[0] {
+        let magic_1 = reg::MAGIC + 1;
+        if at(reg::MAGIC) != MAGIC[0] {
             return bad(
                 reg::MAGIC,
                 "not a whirl register map (magic \"WH\" expected)",
             );
         }
-        if r[1] != MAGIC[1] {
-            return bad(
-                reg::MAGIC + 1,
-                "not a whirl register map (magic \"RL\" expected)",
-            );
+        if at(magic_1) != MAGIC[1] {
+            return bad(magic_1, "not a whirl register map (magic \"RL\" expected)");
         }
-        if r[2] != MAP_VERSION {
+        if at(reg::MAP_VERSION) != MAP_VERSION {
             return bad(reg::MAP_VERSION, "map version 1 expected");
         }
-        if !(MIN_SLOTS..=MAX_SLOTS).contains(&r[3]) {
+        let slots = at(reg::SLOT_COUNT);
+        if !(MIN_SLOTS..=MAX_SLOTS).contains(&slots) {
             return bad(reg::SLOT_COUNT, "slot count must be 2 to 64");
         }
-        if r[4] != SLOT_SIZE {
+        if at(reg::SLOT_SIZE) != SLOT_SIZE {
             return bad(reg::SLOT_SIZE, "slot size 16 expected");
         }
-        let word_order = WordOrder::from_register(r[5])?;
-        if r[6] == 0 {
+        let word_order = WordOrder::from_register(at(reg::WORD_ORDER))?;
+        let max_segment_rate = at(reg::MAX_SEGMENT_RATE);
+        if max_segment_rate == 0 {
             return bad(
                 reg::MAX_SEGMENT_RATE,
                 "a segment rate of 0 executes nothing",
             );
         }
-        if r[7] == 0 {
+        let watchdog_ms = at(reg::WATCHDOG_TIMEOUT);
+        if watchdog_ms == 0 {
             return bad(
                 reg::WATCHDOG_TIMEOUT,
                 "a watchdog timeout of 0 ms cannot be met",
             );
         }
         Ok(Identification {
-            slots: r[3],
+            slots,
             word_order,
-            max_segment_rate: r[6],
-            watchdog_timeout: Duration::from_millis(u64::from(r[7])),
+            max_segment_rate,
+            watchdog_timeout: Duration::from_millis(u64::from(watchdog_ms)),
         })
     }
 }
@@ -441,20 +461,25 @@ pub enum AlarmCode {
 }
 
 impl AlarmCode {
+    /// The alarms the map names; their codes are [`AlarmCode::code`]'s.
+    const NAMED: [AlarmCode; 8] = [
+        AlarmCode::SoftLimit,
+        AlarmCode::AbortCycle,
+        AlarmCode::ProfileError,
+        AlarmCode::SlotCrc,
+        AlarmCode::Sequence,
+        AlarmCode::Segment,
+        AlarmCode::Watchdog,
+        AlarmCode::Refused,
+    ];
+
     /// From the `ALARM_CODE` register; `None` for 0 (no alarm).
     pub fn from_register(value: u16) -> Option<AlarmCode> {
-        Some(match value {
-            0 => return None,
-            2 => AlarmCode::SoftLimit,
-            3 => AlarmCode::AbortCycle,
-            64 => AlarmCode::ProfileError,
-            101 => AlarmCode::SlotCrc,
-            102 => AlarmCode::Sequence,
-            103 => AlarmCode::Segment,
-            104 => AlarmCode::Watchdog,
-            105 => AlarmCode::Refused,
-            other => AlarmCode::Other(other),
-        })
+        if value == 0 {
+            return None;
+        }
+        let named = AlarmCode::NAMED.into_iter().find(|a| a.code() == value);
+        Some(named.unwrap_or(AlarmCode::Other(value)))
     }
 
     /// The register value.
@@ -654,8 +679,8 @@ mod tests {
     #[test]
     fn c_near_700_000_degrees_is_held_exactly() {
         // 700 000.1234° = 7 000 001 234 units of 10⁻⁴ °, beyond i32 (2 147 483 647):
-        // 7 000 001 234 = 0x0000_0001_A13B_8CD2... worked out: 7 000 001 234 − 2³² =
-        // 2 705 033 938 = 0xA13B_86D2, so the words are 0x0000 0x0001 0xA13B 0x8AD2.
+        // 7 000 001 234 − 2³² = 2 705 033 938 = 0xA13B_8AD2, so the i64 is
+        // 0x0000_0001_A13B_8AD2 and the words are 0x0000 0x0001 0xA13B 0x8AD2.
         let program = Program {
             moves: vec![Move::Linked {
                 x: 12.5,
@@ -913,6 +938,580 @@ mod tests {
             (4, State::Done),
         ] {
             assert_eq!(State::from_register(value), Ok(state));
+        }
+    }
+
+    // ---- The golden fixture, tests/data/modbus-golden.json ----
+    //
+    // Registers and bytes worked out by hand from docs/modbus.md and read by the simulator's
+    // tests too: this side's one definition of each number, its slots, its decoding of the
+    // identification and status blocks, and the control and HEAD writes of its stream must
+    // all agree with it.
+
+    use crate::post::modbus::{ANGULAR_UNITS_PER_DEG, LINEAR_UNITS_PER_MM};
+    use crate::protocol::modbus::{Request, Response, RingWriter, WriterOptions};
+    use serde_json::Value;
+
+    const GOLDEN: &str = include_str!(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/modbus-golden.json"
+    ));
+
+    fn golden() -> Value {
+        serde_json::from_str(GOLDEN).expect("tests/data/modbus-golden.json is JSON")
+    }
+
+    /// A number of the fixture: a JSON integer, or a hex string such as "0x0302".
+    fn int(v: &Value) -> i64 {
+        match v {
+            Value::Number(n) => n.as_i64().expect("an integer"),
+            Value::String(s) => {
+                let hex = s.strip_prefix("0x").expect("a hex string starts 0x");
+                i64::from_str_radix(hex, 16).expect("hex digits")
+            }
+            other => panic!("not a number: {other}"),
+        }
+    }
+
+    fn word(v: &Value) -> u16 {
+        u16::try_from(int(v)).expect("a 16-bit value")
+    }
+
+    fn words(v: &Value) -> Vec<u16> {
+        v.as_array().expect("a list").iter().map(word).collect()
+    }
+
+    /// "57 48 …" as bytes.
+    fn hex_bytes(v: &Value) -> Vec<u8> {
+        v.as_str()
+            .expect("hex bytes")
+            .split_whitespace()
+            .map(|b| u8::from_str_radix(b, 16).expect("a hex byte"))
+            .collect()
+    }
+
+    /// Registers as they go on the wire, each high byte first.
+    fn wire(registers: &[u16]) -> Vec<u8> {
+        registers.iter().flat_map(|r| r.to_be_bytes()).collect()
+    }
+
+    fn list(v: &Value) -> &[Value] {
+        v.as_array().expect("a list of cases")
+    }
+
+    fn named<'a>(cases: &'a Value, name: &str) -> &'a Value {
+        list(cases)
+            .iter()
+            .find(|c| c["name"] == name)
+            .unwrap_or_else(|| panic!("no case {name}"))
+    }
+
+    /// A request PDU of the fixture as the request it stands for (FC16 by its header:
+    /// address, quantity and byte count; the values follow it).
+    fn pdu_request(v: &Value) -> Request {
+        let b = hex_bytes(v);
+        let at = |k: usize| u16::from_be_bytes([b[k], b[k + 1]]);
+        match b[0] {
+            3 => Request::ReadHolding {
+                address: at(1),
+                count: at(3),
+            },
+            6 => Request::WriteSingle {
+                address: at(1),
+                value: at(3),
+            },
+            16 => {
+                assert_eq!(usize::from(b[5]), 2 * usize::from(at(3)), "byte count");
+                Request::WriteMultiple {
+                    address: at(1),
+                    values: vec![0; usize::from(at(3))],
+                }
+            }
+            f => panic!("function {f} is not in the map"),
+        }
+    }
+
+    /// `request` with an FC16's values zeroed, to compare with [`pdu_request`].
+    fn shape(request: &Request) -> Request {
+        match request {
+            Request::WriteMultiple { address, values } => Request::WriteMultiple {
+                address: *address,
+                values: vec![0; values.len()],
+            },
+            other => other.clone(),
+        }
+    }
+
+    fn orders() -> [(&'static str, WordOrder); 2] {
+        [
+            ("high_first", WordOrder::HighFirst),
+            ("low_first", WordOrder::LowFirst),
+        ]
+    }
+
+    fn control_bit(name: &str) -> u16 {
+        match name {
+            "RUN" => control::RUN,
+            "HOLD" => control::HOLD,
+            "RESUME" => control::RESUME,
+            "RESET_ALARM" => control::RESET_ALARM,
+            "ABORT" => control::ABORT,
+            "END" => control::END,
+            other => panic!("no control bit {other}"),
+        }
+    }
+
+    #[test]
+    fn golden_numbers_are_this_side_s() {
+        let g = golden();
+        let m = &g["map"];
+        let registers = [
+            ("MAGIC_0", reg::MAGIC),
+            ("MAGIC_1", reg::MAGIC + 1),
+            ("MAP_VERSION", reg::MAP_VERSION),
+            ("SLOT_COUNT", reg::SLOT_COUNT),
+            ("SLOT_SIZE", reg::SLOT_SIZE),
+            ("WORD_ORDER", reg::WORD_ORDER),
+            ("MAX_SEGMENT_RATE", reg::MAX_SEGMENT_RATE),
+            ("WATCHDOG_TIMEOUT", reg::WATCHDOG_TIMEOUT),
+            ("STATE", reg::STATE),
+            ("ALARM_CODE", reg::ALARM_CODE),
+            ("ALARM_SEQ", reg::ALARM_SEQ),
+            ("ALARM_DETAIL", reg::ALARM_DETAIL),
+            ("TAIL", reg::TAIL),
+            ("EXECUTED_SEQ", reg::EXECUTED_SEQ),
+            ("POS_X", reg::POS_X),
+            ("POS_Z", reg::POS_Z),
+            ("POS_C", reg::POS_C),
+            ("CONTROL", reg::CONTROL),
+            ("HEAD", reg::HEAD),
+            ("WATCHDOG", reg::WATCHDOG),
+            ("RING", reg::RING),
+        ];
+        assert_eq!(m["registers"].as_object().unwrap().len(), registers.len());
+        for (name, address) in registers {
+            assert_eq!(word(&m["registers"][name]), address, "{name}");
+        }
+        assert_eq!(word(&m["identification_length"]), reg::IDENT_LEN);
+        assert_eq!(word(&m["status_length"]), reg::STATUS_LEN);
+        assert_eq!(int(&m["unit_id"]), i64::from(UNIT_ID));
+        assert_eq!(words(&m["magic"]), MAGIC);
+        assert_eq!(word(&m["map_version"]), MAP_VERSION);
+        assert_eq!(word(&m["slot_size"]), SLOT_SIZE);
+        assert_eq!(word(&m["slot_count"]["min"]), MIN_SLOTS);
+        assert_eq!(word(&m["slot_count"]["max"]), MAX_SLOTS);
+        assert_eq!(word(&m["max_read"]), MAX_READ);
+        assert_eq!(word(&m["max_write"]), MAX_WRITE);
+        let offsets = [
+            ("SEQ", offset::SEQ),
+            ("KIND", offset::KIND),
+            ("X", offset::X),
+            ("Z", offset::Z),
+            ("C", offset::C),
+            ("PARAM", offset::PARAM),
+            ("CRC", offset::CRC),
+        ];
+        assert_eq!(m["slot_offsets"].as_object().unwrap().len(), offsets.len());
+        for (name, at) in offsets {
+            assert_eq!(int(&m["slot_offsets"][name]), at as i64, "{name}");
+        }
+        for (name, order) in orders() {
+            assert_eq!(word(&m["word_order"][name]), order.register(), "{name}");
+            assert_eq!(WordOrder::from_register(order.register()), Ok(order));
+        }
+        let bits = m["control"].as_object().unwrap();
+        assert_eq!(bits.len(), 6);
+        for (name, bit) in bits {
+            assert_eq!(word(bit), control_bit(name), "{name}");
+        }
+        let kinds = [
+            ("linked", kind::LINKED),
+            ("rapid", kind::RAPID),
+            ("feed", kind::FEED),
+            ("dwell", kind::DWELL),
+            ("spindle_on", kind::SPINDLE_ON),
+            ("spindle_off", kind::SPINDLE_OFF),
+            ("program_end", kind::PROGRAM_END),
+        ];
+        assert_eq!(m["kinds"].as_object().unwrap().len(), kinds.len());
+        for (name, code) in kinds {
+            assert_eq!(word(&m["kinds"][name]), code, "{name}");
+        }
+        for (name, bit) in [("X", flag::X), ("Z", flag::Z), ("C", flag::C)] {
+            assert_eq!(word(&m["flags"][name]), bit, "{name}");
+        }
+        for (name, state) in [
+            ("idle", State::Idle),
+            ("running", State::Running),
+            ("held", State::Held),
+            ("alarm", State::Alarm),
+            ("done", State::Done),
+        ] {
+            assert_eq!(State::from_register(word(&m["states"][name])), Ok(state));
+        }
+        let alarms = [
+            ("soft_limit", AlarmCode::SoftLimit),
+            ("abort_cycle", AlarmCode::AbortCycle),
+            ("profile_error", AlarmCode::ProfileError),
+            ("slot_crc", AlarmCode::SlotCrc),
+            ("sequence", AlarmCode::Sequence),
+            ("segment", AlarmCode::Segment),
+            ("watchdog", AlarmCode::Watchdog),
+            ("refused", AlarmCode::Refused),
+        ];
+        assert_eq!(m["alarms"].as_object().unwrap().len(), alarms.len());
+        for (name, alarm) in alarms {
+            let code = word(&m["alarms"][name]);
+            assert_eq!(alarm.code(), code, "{name}");
+            assert_eq!(AlarmCode::from_register(code), Some(alarm), "{name}");
+        }
+        // The map's units as the segments carry them (post::modbus), checked here too.
+        let units = &m["units"];
+        assert_eq!(int(&units["linear_per_mm"]) as f64, LINEAR_UNITS_PER_MM);
+        assert_eq!(
+            int(&units["angular_per_degree"]) as f64,
+            ANGULAR_UNITS_PER_DEG
+        );
+        let check = &g["crc"]["check"];
+        assert_eq!(
+            crc16(check["ascii"].as_str().unwrap().as_bytes()),
+            word(&check["crc"])
+        );
+    }
+
+    #[test]
+    fn golden_identification_blocks_decode() {
+        let g = golden();
+        for case in list(&g["identification"]) {
+            let name = case["name"].as_str().unwrap();
+            let registers = words(&case["registers"]);
+            assert_eq!(wire(&registers), hex_bytes(&case["bytes"]), "{name}");
+            assert_eq!(
+                pdu_request(&case["request_pdu"]),
+                Request::ReadHolding {
+                    address: reg::MAGIC,
+                    count: reg::IDENT_LEN
+                },
+                "{name}"
+            );
+            assert_eq!(
+                Identification::decode(&registers),
+                Ok(Identification {
+                    slots: word(&case["slots"]),
+                    word_order: WordOrder::from_register(word(&case["word_order"])).unwrap(),
+                    max_segment_rate: word(&case["max_segment_rate"]),
+                    watchdog_timeout: Duration::from_millis(
+                        int(&case["watchdog_timeout_ms"]) as u64
+                    ),
+                }),
+                "{name}"
+            );
+        }
+    }
+
+    /// The segment a slot case describes: its kind, the axes given (null for an axis
+    /// without its flag) and `PARAM`.
+    fn golden_segment(case: &Value) -> Segment {
+        let axis = |name: &str| (!case[name].is_null()).then(|| int(&case[name]));
+        let linear = |name: &str| axis(name).map(|v| i32::try_from(v).expect("an i32"));
+        let (x, z, c) = (linear("x"), linear("z"), axis("c"));
+        let param = u32::try_from(int(&case["param"])).expect("a u32");
+        let no_axes = x.is_none() && z.is_none() && c.is_none();
+        let segment = match word(&case["kind"]) {
+            kind::LINKED => Segment::Linked {
+                x: x.unwrap(),
+                z: z.unwrap(),
+                c: c.unwrap(),
+                duration_us: param,
+            },
+            kind::RAPID => Segment::Rapid { x, z, c },
+            kind::FEED => Segment::Feed {
+                x,
+                z,
+                c,
+                feed: param,
+            },
+            kind::DWELL => Segment::Dwell { duration_us: param },
+            kind::SPINDLE_ON => Segment::SpindleOn { rpm: param },
+            kind::SPINDLE_OFF => Segment::SpindleOff,
+            kind::PROGRAM_END => Segment::ProgramEnd,
+            other => panic!("kind {other} is not in the map"),
+        };
+        if !matches!(
+            segment,
+            Segment::Linked { .. } | Segment::Rapid { .. } | Segment::Feed { .. }
+        ) {
+            assert!(no_axes, "{case}");
+        }
+        segment
+    }
+
+    #[test]
+    fn golden_slots_encode() {
+        let g = golden();
+        for case in list(&g["slots"]) {
+            let name = case["name"].as_str().unwrap();
+            let segment = golden_segment(case);
+            let sequence = u32::try_from(int(&case["sequence"])).unwrap();
+            for (order_name, order) in orders() {
+                let expected = &case[order_name];
+                let slot = segment.encode(sequence, order);
+                assert_eq!(
+                    slot.to_vec(),
+                    words(&expected["registers"]),
+                    "{name}, {order_name}"
+                );
+                assert_eq!(slot[offset::KIND], word(&case["kind_register"]), "{name}");
+                // The bytes on the wire, and the CRC over the 30 before it, carried high
+                // byte first as the register it is.
+                let bytes = wire(&slot);
+                assert_eq!(bytes, hex_bytes(&expected["bytes"]), "{name}, {order_name}");
+                let crc = crc16(&bytes[..2 * offset::CRC]);
+                assert_eq!(slot[offset::CRC], crc, "{name}, {order_name}");
+                assert_eq!(bytes[2 * offset::CRC..], crc.to_be_bytes());
+            }
+        }
+    }
+
+    #[test]
+    fn golden_status_blocks_decode() {
+        let g = golden();
+        for case in list(&g["status"]) {
+            let name = case["name"].as_str().unwrap();
+            assert_eq!(
+                pdu_request(&case["request_pdu"]),
+                Request::ReadHolding {
+                    address: reg::STATE,
+                    count: reg::STATUS_LEN
+                },
+                "{name}"
+            );
+            let code = word(&case["alarm_code"]);
+            let expected = Status {
+                state: State::from_register(word(&case["state"])).unwrap(),
+                alarm: AlarmCode::from_register(code).map(|code| AlarmReport {
+                    code,
+                    sequence: u32::try_from(int(&case["alarm_seq"])).unwrap(),
+                    detail: word(&case["alarm_detail"]),
+                }),
+                tail: word(&case["tail"]),
+                executed: u32::try_from(int(&case["executed_seq"])).unwrap(),
+                x: i32::try_from(int(&case["x"])).unwrap(),
+                z: i32::try_from(int(&case["z"])).unwrap(),
+                c: int(&case["c"]),
+                control: word(&case["control"]),
+                head: word(&case["head"]),
+                watchdog: word(&case["watchdog"]),
+            };
+            for (order_name, order) in orders() {
+                let registers = words(&case[order_name]);
+                assert_eq!(
+                    Status::decode(&registers, order),
+                    Ok(expected),
+                    "{name}, {order_name}"
+                );
+            }
+            let p = &case["position"];
+            let mm = |k: &str| p[k].as_f64().unwrap();
+            assert_eq!(
+                expected.position(),
+                [mm("x_mm"), mm("z_mm"), mm("c_deg")],
+                "{name}"
+            );
+        }
+    }
+
+    /// The controller's side of a stream, as far as the fixture's identification and the
+    /// ring's HEAD and TAIL go: idle, no alarm, TAIL where the test puts it.
+    struct GoldenRing {
+        ident: Vec<u16>,
+        control: u16,
+        head: u16,
+        tail: u16,
+        watchdog: u16,
+    }
+
+    impl GoldenRing {
+        fn answer(&mut self, request: &Request) -> Response {
+            match *request {
+                Request::ReadHolding { address, count }
+                    if (address, count) == (reg::MAGIC, reg::IDENT_LEN) =>
+                {
+                    Response::ReadHolding(self.ident.clone())
+                }
+                Request::ReadHolding { address, count }
+                    if (address, count) == (reg::STATE, reg::STATUS_LEN) =>
+                {
+                    let mut r = vec![0; usize::from(reg::STATUS_LEN)];
+                    let at = |register: u16| usize::from(register - reg::STATE);
+                    r[at(reg::TAIL)] = self.tail;
+                    r[at(reg::CONTROL)] = self.control;
+                    r[at(reg::HEAD)] = self.head;
+                    r[at(reg::WATCHDOG)] = self.watchdog;
+                    Response::ReadHolding(r)
+                }
+                Request::WriteSingle { address, value } => {
+                    match address {
+                        reg::CONTROL => {
+                            if value & !self.control & control::ABORT != 0 {
+                                (self.head, self.tail) = (0, 0);
+                            }
+                            self.control = value;
+                        }
+                        reg::HEAD => self.head = value,
+                        reg::WATCHDOG => self.watchdog = value,
+                        other => panic!("FC06 to register {other}"),
+                    }
+                    Response::WriteSingle { address, value }
+                }
+                Request::WriteMultiple {
+                    address,
+                    ref values,
+                } => Response::WriteMultiple {
+                    address,
+                    count: values.len() as u16,
+                },
+                ref other => panic!("unexpected {other:?}"),
+            }
+        }
+    }
+
+    fn golden_drive(w: &mut RingWriter, ring: &mut GoldenRing, now: Duration) -> Vec<Request> {
+        let mut sent = Vec::new();
+        while let Some(request) = w.poll(now) {
+            w.response(Ok(ring.answer(&request)));
+            sent.push(request);
+        }
+        sent
+    }
+
+    #[test]
+    fn golden_control_and_head_writes_of_a_stream() {
+        let g = golden();
+        let ident = named(&g["identification"], "identification_low_first");
+        let linked = named(&g["slots"], "linked");
+        let [first, full, wraps] =
+            ["head_first_slot", "head_full", "head_wraps"].map(|n| named(&g["head"], n));
+        for case in [first, full, wraps] {
+            assert_eq!(case["slots"], ident["slots"]);
+        }
+        // Five linked moves numbered from the fixture's, into the ring of 4 that
+        // identification_low_first describes.
+        let options = WriterOptions {
+            first_sequence: u32::try_from(int(&linked["sequence"])).unwrap(),
+            ..WriterOptions::default()
+        };
+        let mut w = RingWriter::new(vec![golden_segment(linked); 5], options).unwrap();
+        let mut ring = GoldenRing {
+            ident: words(&ident["registers"]),
+            control: 0,
+            head: 0,
+            tail: 0,
+            watchdog: 0,
+        };
+        let mut sent = golden_drive(&mut w, &mut ring, Duration::ZERO);
+        assert_eq!(sent[0], pdu_request(&ident["request_pdu"]));
+        assert_eq!(
+            sent[1],
+            pdu_request(&named(&g["status"], "status_done")["request_pdu"])
+        );
+        // The first slot after the flush, and its HEAD write; the slot is the fixture's,
+        // low word first.
+        let k = sent
+            .iter()
+            .position(|r| matches!(r, Request::WriteMultiple { .. }))
+            .unwrap();
+        assert_eq!(shape(&sent[k]), pdu_request(&first["slot_write_pdu"]));
+        assert_eq!(
+            sent[k],
+            Request::WriteMultiple {
+                address: reg::RING,
+                values: words(&linked["low_first"]["registers"]),
+            }
+        );
+        assert_eq!(sent[k + 1], pdu_request(&first["head_write_pdu"]));
+        // Full at HEAD 3, TAIL 0: after that HEAD write no slot, but RUN.
+        let head = word(&full["head"]);
+        assert_eq!(ring.tail, word(&full["tail"]));
+        let k = sent
+            .iter()
+            .position(|r| {
+                *r == Request::WriteSingle {
+                    address: reg::HEAD,
+                    value: head,
+                }
+            })
+            .unwrap();
+        assert_eq!(
+            sent[k + 1..],
+            [Request::WriteSingle {
+                address: reg::CONTROL,
+                value: control::RUN
+            }]
+        );
+        // A hold whose answer is lost (the same word re-sent), then a resume.
+        w.hold();
+        let hold = w.poll(Duration::ZERO).unwrap();
+        sent.push(hold.clone());
+        w.timeout();
+        assert_eq!(w.poll(Duration::ZERO), Some(hold.clone()));
+        w.response(Ok(ring.answer(&hold)));
+        sent.push(hold);
+        sent.extend(golden_drive(&mut w, &mut ring, Duration::ZERO));
+        w.resume();
+        sent.extend(golden_drive(&mut w, &mut ring, Duration::ZERO));
+        // The controller takes slots up to TAIL 2: HEAD 3 wraps to 0 (and on, to the end).
+        ring.tail = word(&wraps["tail"]);
+        assert_eq!(ring.head, word(&wraps["head"]));
+        let later = golden_drive(&mut w, &mut ring, Duration::from_millis(50));
+        let k = later
+            .iter()
+            .position(|r| matches!(r, Request::ReadHolding { .. }))
+            .unwrap();
+        assert_eq!(shape(&later[k + 1]), pdu_request(&wraps["slot_write_pdu"]));
+        assert_eq!(later[k + 2], pdu_request(&wraps["head_write_pdu"]));
+        sent.extend(later);
+        // Every control word the stream wrote is the fixture's, in its order.
+        let written: Vec<Request> = sent
+            .iter()
+            .filter(
+                |r| matches!(r, Request::WriteSingle { address, .. } if *address == reg::CONTROL),
+            )
+            .cloned()
+            .collect();
+        let writes: Vec<&Value> = list(&g["control"]["writes"])
+            .iter()
+            .filter(|c| c["by_the_bridge"] == true)
+            .collect();
+        let expected: Vec<Request> = writes.iter().map(|c| pdu_request(&c["pdu"])).collect();
+        assert_eq!(written, expected);
+        // And each says its edges with this side's bits.
+        let all = control::RUN
+            | control::HOLD
+            | control::RESUME
+            | control::RESET_ALARM
+            | control::ABORT
+            | control::END;
+        for case in list(&g["control"]["writes"]) {
+            let (before, value) = (word(&case["before"]), word(&case["value"]));
+            assert_eq!(
+                pdu_request(&case["pdu"]),
+                Request::WriteSingle {
+                    address: reg::CONTROL,
+                    value
+                }
+            );
+            let rising = case["rising"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .fold(0, |bits, name| bits | control_bit(name.as_str().unwrap()));
+            if case["exception"].is_null() {
+                assert_eq!(value & !all, 0, "{case}");
+                assert_eq!(value & !before, rising, "{case}");
+            } else {
+                assert_ne!(value & !all, 0, "a reserved bit: {case}");
+            }
         }
     }
 }

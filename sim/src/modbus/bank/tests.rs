@@ -857,3 +857,543 @@ fn numbers_are_written_exactly() {
     };
     assert_eq!(s.line(3), "N3 G93 G1 X0 Z0 C0 F8571428.571429");
 }
+
+// ---- The golden fixture, tests/data/modbus-golden.json ----
+//
+// Registers and bytes worked out by hand from docs/modbus.md and read by the bridge's tests
+// too: the bank's one definition of each number, the slots it decodes, the identification
+// and status it serves, and the control word's edges must all agree with it.
+
+use serde_json::Value;
+
+const GOLDEN: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../tests/data/modbus-golden.json"
+));
+
+fn golden() -> Value {
+    serde_json::from_str(GOLDEN).expect("tests/data/modbus-golden.json is JSON")
+}
+
+/// A number of the fixture: a JSON integer, or a hex string such as "0x0302".
+fn num(v: &Value) -> i64 {
+    match v {
+        Value::Number(n) => n.as_i64().expect("an integer"),
+        Value::String(s) => {
+            let hex = s.strip_prefix("0x").expect("a hex string starts 0x");
+            i64::from_str_radix(hex, 16).expect("hex digits")
+        }
+        other => panic!("not a number: {other}"),
+    }
+}
+
+fn u16_of(v: &Value) -> u16 {
+    u16::try_from(num(v)).expect("a 16-bit value")
+}
+
+fn u32_of(v: &Value) -> u32 {
+    u32::try_from(num(v)).expect("a 32-bit value")
+}
+
+fn registers_of(v: &Value) -> Vec<u16> {
+    v.as_array().expect("a list").iter().map(u16_of).collect()
+}
+
+fn bytes_of(v: &Value) -> Vec<u8> {
+    v.as_str()
+        .expect("hex bytes")
+        .split_whitespace()
+        .map(|b| u8::from_str_radix(b, 16).expect("a hex byte"))
+        .collect()
+}
+
+/// Registers as Modbus sends them, each high byte first.
+fn on_the_wire(registers: &[u16]) -> Vec<u8> {
+    registers
+        .iter()
+        .flat_map(|r| [(r >> 8) as u8, *r as u8])
+        .collect()
+}
+
+fn cases(v: &Value) -> &[Value] {
+    v.as_array().expect("a list of cases")
+}
+
+fn case<'a>(v: &'a Value, name: &str) -> &'a Value {
+    cases(v)
+        .iter()
+        .find(|c| c["name"] == name)
+        .unwrap_or_else(|| panic!("no case {name}"))
+}
+
+/// A request PDU of the fixture as the bank's request; an FC16 (given by its header)
+/// carries `values`.
+fn request_of(pdu: &Value, values: &[u16]) -> Request {
+    let b = bytes_of(pdu);
+    let word = |k: usize| (u16::from(b[k]) << 8) | u16::from(b[k + 1]);
+    match b[0] {
+        0x03 => Request::ReadHolding {
+            address: word(1),
+            count: word(3),
+        },
+        0x06 => Request::WriteSingle {
+            address: word(1),
+            value: word(3),
+        },
+        0x10 => {
+            assert_eq!(usize::from(word(3)), values.len(), "quantity");
+            assert_eq!(usize::from(b[5]), 2 * values.len(), "byte count");
+            Request::WriteMultiple {
+                address: word(1),
+                values: values.to_vec(),
+            }
+        }
+        f => panic!("function {f:#04x} is not in the map"),
+    }
+}
+
+fn order_of(name: &str) -> (WordOrder, bool) {
+    match name {
+        "high_first" => (WordOrder::HighFirst, false),
+        "low_first" => (WordOrder::LowFirst, true),
+        other => panic!("no word order {other}"),
+    }
+}
+
+fn golden_bank(slots: u16, word_order: WordOrder) -> Bank {
+    bank_on(
+        &machine(),
+        BankOptions {
+            slots,
+            word_order,
+            // Long enough for the scenarios below, which feed it nowhere.
+            watchdog_timeout_ms: 60_000,
+            ..BankOptions::default()
+        },
+    )
+}
+
+/// A control bit by the fixture's name for it.
+fn bit(g: &Value, name: &str) -> u16 {
+    u16_of(&g["map"]["control"][name])
+}
+
+/// The segment the bank should read from a slot case, by the kind's name in the fixture.
+fn golden_segment(g: &Value, s: &Value) -> Segment {
+    let kind = num(&s["kind"]);
+    let (name, _) = g["map"]["kinds"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .find(|(_, code)| num(code) == kind)
+        .expect("a kind the map names");
+    let axes = ["x", "z", "c"].map(|a| (!s[a].is_null()).then(|| num(&s[a])));
+    let param = u32_of(&s["param"]);
+    let none = axes == [None; 3];
+    match name.as_str() {
+        "linked" => Segment::Linked {
+            xzc: axes.map(|a| a.expect("a linked move gives every axis")),
+            micros: param,
+        },
+        "rapid" => Segment::Rapid { axes },
+        "feed" => Segment::Feed { axes, milli: param },
+        "dwell" if none => Segment::Dwell { micros: param },
+        "spindle_on" if none => Segment::SpindleOn { milli: param },
+        "spindle_off" if none => Segment::SpindleOff,
+        "program_end" if none => Segment::ProgramEnd,
+        other => panic!("slot case {} as {other}", s["name"]),
+    }
+}
+
+#[test]
+fn golden_numbers_are_the_bank_s() {
+    let g = golden();
+    let m = &g["map"];
+    let registers = [
+        ("MAGIC_0", MAGIC_0),
+        ("MAGIC_1", MAGIC_1),
+        ("MAP_VERSION", MAP_VERSION),
+        ("SLOT_COUNT", SLOT_COUNT),
+        ("SLOT_SIZE", SLOT_SIZE),
+        ("WORD_ORDER", WORD_ORDER),
+        ("MAX_SEGMENT_RATE", MAX_SEGMENT_RATE),
+        ("WATCHDOG_TIMEOUT", WATCHDOG_TIMEOUT),
+        ("STATE", STATE),
+        ("ALARM_CODE", ALARM_CODE),
+        ("ALARM_SEQ", ALARM_SEQ),
+        ("ALARM_DETAIL", ALARM_DETAIL),
+        ("TAIL", TAIL),
+        ("EXECUTED_SEQ", EXECUTED_SEQ),
+        ("POS_X", POS_X),
+        ("POS_Z", POS_Z),
+        ("POS_C", POS_C),
+        ("CONTROL", CONTROL),
+        ("HEAD", HEAD),
+        ("WATCHDOG", WATCHDOG),
+        ("RING", RING),
+    ];
+    assert_eq!(m["registers"].as_object().unwrap().len(), registers.len());
+    for (name, address) in registers {
+        assert_eq!(u16_of(&m["registers"][name]), address, "{name}");
+    }
+    // The blocks as long as the fixture says: read whole, and not one register more.
+    let mut b = bank(4);
+    for (first, len) in [
+        (MAGIC_0, u16_of(&m["identification_length"])),
+        (STATE, u16_of(&m["status_length"])),
+    ] {
+        assert_eq!(read(&mut b, first, len).map(|r| r.len()), Ok(len.into()));
+        assert_eq!(
+            read(&mut b, first, len + 1),
+            Err(Exception::IllegalDataAddress)
+        );
+    }
+    assert_eq!(num(&m["unit_id"]), i64::from(super::super::serve::UNIT_ID));
+    assert_eq!(registers_of(&m["magic"]), MAGIC);
+    assert_eq!(u16_of(&m["map_version"]), VERSION);
+    assert_eq!(u16_of(&m["slot_size"]), SLOT);
+    assert_eq!(
+        (
+            u16_of(&m["slot_count"]["min"]),
+            u16_of(&m["slot_count"]["max"])
+        ),
+        (*SLOTS.start(), *SLOTS.end())
+    );
+    assert_eq!(u16_of(&m["max_read"]), MAX_READ);
+    assert_eq!(num(&m["max_write"]), MAX_WRITE as i64);
+    let offsets = [
+        ("SEQ", SLOT_SEQ),
+        ("KIND", SLOT_KIND),
+        ("X", SLOT_X),
+        ("Z", SLOT_Z),
+        ("C", SLOT_C),
+        ("PARAM", SLOT_PARAM),
+        ("CRC", SLOT_CRC),
+    ];
+    assert_eq!(m["slot_offsets"].as_object().unwrap().len(), offsets.len());
+    for (name, offset) in offsets {
+        assert_eq!(num(&m["slot_offsets"][name]), offset as i64, "{name}");
+    }
+    let reserved: Vec<usize> = cases(&m["reserved_offsets"])
+        .iter()
+        .map(|v| num(v) as usize)
+        .collect();
+    assert_eq!(reserved, SLOT_RESERVED);
+    for name in ["high_first", "low_first"] {
+        assert_eq!(u16_of(&m["word_order"][name]), order_of(name).0.register());
+    }
+    let control = [
+        ("RUN", RUN),
+        ("HOLD", HOLD),
+        ("RESUME", RESUME),
+        ("RESET_ALARM", RESET_ALARM),
+        ("ABORT", ABORT),
+        ("END", END),
+    ];
+    assert_eq!(m["control"].as_object().unwrap().len(), control.len());
+    for (name, value) in control {
+        assert_eq!(bit(&g, name), value, "{name}");
+    }
+    let kinds = [
+        ("linked", KIND_LINKED),
+        ("rapid", KIND_RAPID),
+        ("feed", KIND_FEED),
+        ("dwell", KIND_DWELL),
+        ("spindle_on", KIND_SPINDLE_ON),
+        ("spindle_off", KIND_SPINDLE_OFF),
+        ("program_end", KIND_PROGRAM_END),
+    ];
+    assert_eq!(m["kinds"].as_object().unwrap().len(), kinds.len());
+    for (name, code) in kinds {
+        assert_eq!(u16_of(&m["kinds"][name]), code, "{name}");
+        assert_eq!(code & !KIND_MASK, 0);
+    }
+    for (name, flag) in [("X", FLAG_X), ("Z", FLAG_Z), ("C", FLAG_C)] {
+        assert_eq!(u16_of(&m["flags"][name]), flag, "{name}");
+    }
+    for (name, state) in [
+        ("idle", IDLE),
+        ("running", RUNNING),
+        ("held", HELD),
+        ("alarm", ALARM),
+        ("done", DONE),
+    ] {
+        assert_eq!(u16_of(&m["states"][name]), state, "{name}");
+    }
+    let alarms = [
+        ("soft_limit", u16::from(GrblAlarm::SoftLimit.code())),
+        ("abort_cycle", u16::from(GrblAlarm::AbortCycle.code())),
+        ("profile_error", u16::from(GrblAlarm::ProfileError.code())),
+        ("slot_crc", ALARM_CRC),
+        ("sequence", ALARM_SEQUENCE),
+        ("segment", ALARM_SEGMENT),
+        ("watchdog", ALARM_WATCHDOG),
+        ("refused", ALARM_REFUSED),
+    ];
+    assert_eq!(m["alarms"].as_object().unwrap().len(), alarms.len());
+    for (name, code) in alarms {
+        assert_eq!(u16_of(&m["alarms"][name]), code, "{name}");
+    }
+    let units = &m["units"];
+    let per = |decimals: u32| 10i64.pow(decimals);
+    assert_eq!(num(&units["linear_per_mm"]), per(LINEAR_DECIMALS));
+    assert_eq!(num(&units["angular_per_degree"]), per(ANGULAR_DECIMALS));
+    assert_eq!(num(&units["duration_per_second"]), per(MICRO_DECIMALS));
+    assert_eq!(num(&units["feed_per_mm_per_minute"]), per(MILLI_DECIMALS));
+    assert_eq!(num(&units["spindle_per_rpm"]), per(MILLI_DECIMALS));
+    assert_eq!(
+        MICROS_PER_MINUTE,
+        60 * num(&units["duration_per_second"]) as u128
+    );
+    let check = &g["crc"]["check"];
+    assert_eq!(
+        crc16(check["ascii"].as_str().unwrap().as_bytes()),
+        u16_of(&check["crc"])
+    );
+}
+
+#[test]
+fn golden_identification_is_served() {
+    let g = golden();
+    for c in cases(&g["identification"]) {
+        let name = c["name"].as_str().unwrap();
+        let (order, _) = order_of(["high_first", "low_first"][num(&c["word_order"]) as usize]);
+        let mut b = bank_on(
+            &machine(),
+            BankOptions {
+                slots: u16_of(&c["slots"]),
+                word_order: order,
+                watchdog_timeout_ms: u16_of(&c["watchdog_timeout_ms"]),
+                max_segment_rate: u16_of(&c["max_segment_rate"]),
+            },
+        );
+        let expected = registers_of(&c["registers"]);
+        assert_eq!(on_the_wire(&expected), bytes_of(&c["bytes"]), "{name}");
+        assert_eq!(
+            b.request(&request_of(&c["request_pdu"], &[])),
+            Ok(Response::ReadHolding(expected)),
+            "{name}"
+        );
+    }
+}
+
+#[test]
+fn golden_slots_decode() {
+    let g = golden();
+    for s in cases(&g["slots"]) {
+        let name = s["name"].as_str().unwrap();
+        let expected = golden_segment(&g, s);
+        let sequence = u32_of(&s["sequence"]);
+        for order_name in ["high_first", "low_first"] {
+            let (order, _) = order_of(order_name);
+            let registers = registers_of(&s[order_name]["registers"]);
+            let bytes = bytes_of(&s[order_name]["bytes"]);
+            assert_eq!(on_the_wire(&registers), bytes, "{name}, {order_name}");
+            // The CRC over the 30 bytes of registers 0–14, in register 15 high byte first.
+            let crc = crc16(&bytes[..2 * SLOT_CRC]);
+            assert_eq!(registers[SLOT_CRC], crc, "{name}, {order_name}");
+            assert_eq!(registers[SLOT_KIND], u16_of(&s["kind_register"]));
+            assert_eq!(
+                Segment::parse(&registers, order),
+                Some(expected),
+                "{name}, {order_name}"
+            );
+            assert_eq!(
+                expected.line(sequence % LINE_NUMBERS),
+                s["gcode"].as_str().unwrap()
+            );
+            // Published into an empty ring it passes every check at the HEAD write.
+            let mut b = golden_bank(4, order);
+            assert!(write_slot(&mut b, 0, &registers).is_ok());
+            assert!(write(&mut b, HEAD, 1).is_ok(), "{name}, {order_name}");
+            assert_eq!(b.queue.front(), Some(&(sequence, expected)));
+        }
+    }
+}
+
+#[test]
+fn golden_status_is_served() {
+    let g = golden();
+    let done = case(&g["status"], "status_done");
+    let alarmed = case(&g["status"], "status_alarm_sequence");
+    let slots = cases(&g["slots"]);
+    for order_name in ["high_first", "low_first"] {
+        let (order, _) = order_of(order_name);
+        let mut b = golden_bank(32, order);
+        let status = |b: &mut Bank, c: &Value| b.request(&request_of(&c["request_pdu"], &[]));
+        // The fixture's program, published at once and run to the end.
+        for (k, s) in slots.iter().enumerate() {
+            let registers = registers_of(&s[order_name]["registers"]);
+            write_slot(&mut b, k as u16, &registers).unwrap();
+        }
+        assert!(write(&mut b, HEAD, slots.len() as u16).is_ok());
+        write(&mut b, CONTROL, bit(&g, "RUN") | bit(&g, "END")).unwrap();
+        let mut t = 0.0;
+        while state(&mut b) != DONE && t < 2000.0 {
+            b.advance(0.5).unwrap();
+            t += 0.5;
+        }
+        assert_eq!(
+            status(&mut b, done),
+            Ok(Response::ReadHolding(registers_of(&done[order_name]))),
+            "{order_name}"
+        );
+        // END cleared, the watchdog fed, and the first slot again where the next is
+        // expected: alarm 102, nothing moves.
+        write(&mut b, CONTROL, u16_of(&alarmed["control"])).unwrap();
+        write(&mut b, WATCHDOG, u16_of(&alarmed["watchdog"])).unwrap();
+        let first = registers_of(&case(&g["slots"], "rapid_x_z")[order_name]["registers"]);
+        let head = u16_of(&done["head"]);
+        write_slot(&mut b, head, &first).unwrap();
+        assert_eq!(
+            write(&mut b, HEAD, head + 1),
+            Err(Exception::ServerDeviceFailure)
+        );
+        assert_eq!(
+            status(&mut b, alarmed),
+            Ok(Response::ReadHolding(registers_of(&alarmed[order_name]))),
+            "{order_name}"
+        );
+    }
+}
+
+#[test]
+fn golden_control_word_edges() {
+    let g = golden();
+    let mut b = golden_bank(4, WordOrder::HighFirst);
+    let slot_of = |name: &str| registers_of(&case(&g["slots"], name)["high_first"]["registers"]);
+    // A slot waiting with RUN clear, for the flush to drop.
+    write_slot(&mut b, 0, &slot_of("rapid_x_z")).unwrap();
+    write(&mut b, HEAD, 1).unwrap();
+    for w in cases(&g["control"]["writes"]) {
+        let (before, value) = (u16_of(&w["before"]), u16_of(&w["value"]));
+        let rising: Vec<&str> = cases(&w["rising"])
+            .iter()
+            .map(|r| r.as_str().unwrap())
+            .collect();
+        assert_eq!(reg(&mut b, CONTROL), before, "{w}");
+        let state_before = state(&mut b);
+        let answer = b.request(&request_of(&w["pdu"], &[]));
+        if !w["exception"].is_null() {
+            assert_eq!(
+                answer.map_err(Exception::code),
+                Err(num(&w["exception"]) as u8),
+                "{w}"
+            );
+            assert_eq!(reg(&mut b, CONTROL), before, "refused, unchanged: {w}");
+            continue;
+        }
+        assert_eq!(
+            answer,
+            Ok(Response::WriteSingle {
+                address: CONTROL,
+                value
+            })
+        );
+        assert_eq!(reg(&mut b, CONTROL), value);
+        match rising[..] {
+            // No edge: nothing happens (a level kept, a bit falling, a word re-sent).
+            [] => assert_eq!(state(&mut b), state_before, "{w}"),
+            ["ABORT"] => {
+                // At rest, the flush is complete when answered. A new stream: the feed.
+                assert_eq!(ring(&mut b), (0, 0, 0));
+                write_slot(&mut b, 0, &slot_of("feed_x")).unwrap();
+                write(&mut b, HEAD, 1).unwrap();
+            }
+            ["RUN"] => {
+                assert_eq!(state(&mut b), RUNNING);
+                b.advance(0.5).unwrap();
+                assert_eq!(state(&mut b), RUNNING);
+            }
+            ["HOLD"] => {
+                b.advance(0.5).unwrap();
+                assert_eq!(state(&mut b), HELD);
+                assert_eq!(
+                    b.controller().state(),
+                    MachineState::Hold { complete: true }
+                );
+            }
+            ["RESUME"] => assert_eq!(state(&mut b), RUNNING),
+            ["END"] => {
+                run(&mut b, 30.0, |b| state(b) == DONE);
+                assert_eq!(state(&mut b), DONE);
+                let feed = u32_of(&case(&g["slots"], "feed_x")["sequence"]);
+                assert_eq!(ring(&mut b), (1, 1, feed));
+            }
+            // Without an alarm, nothing.
+            ["RESET_ALARM"] => assert_eq!(state(&mut b), state_before),
+            _ => panic!("no check for {rising:?}"),
+        }
+    }
+}
+
+#[test]
+fn golden_head_writes() {
+    let g = golden();
+    let slot_of = |name: &str| registers_of(&case(&g["slots"], name)["high_first"]["registers"]);
+    let slot_write = |b: &mut Bank, c: &Value, values: &[u16]| {
+        let request = request_of(&c["slot_write_pdu"], values);
+        let Request::WriteMultiple { address, .. } = request else {
+            unreachable!()
+        };
+        assert_eq!(address, u16_of(&c["slot_address"]));
+        b.request(&request)
+    };
+    let head_write = |b: &mut Bank, c: &Value| {
+        let request = request_of(&c["head_write_pdu"], &[]);
+        assert_eq!(
+            request,
+            Request::WriteSingle {
+                address: HEAD,
+                value: u16_of(&c["new_head"])
+            }
+        );
+        b.request(&request).map_err(Exception::code)
+    };
+    let expect = |c: &Value| match &c["exception"] {
+        Value::Null => Ok(Response::WriteSingle {
+            address: HEAD,
+            value: u16_of(&c["new_head"]),
+        }),
+        code => Err(num(code) as u8),
+    };
+    // After a flush (power-up): the first slot and HEAD 1.
+    let first = case(&g["head"], "head_first_slot");
+    let mut b = golden_bank(u16_of(&first["slots"]), WordOrder::HighFirst);
+    assert_eq!(
+        (reg(&mut b, TAIL), reg(&mut b, HEAD)),
+        (u16_of(&first["tail"]), u16_of(&first["head"]))
+    );
+    assert!(slot_write(&mut b, first, &slot_of("rapid_x_z")).is_ok());
+    assert_eq!(head_write(&mut b, first), expect(first));
+    assert_eq!(reg(&mut b, HEAD), u16_of(&first["new_head"]));
+    // Full: three published with RUN clear, HEAD 3, TAIL 0. Slot 3 may be written (not
+    // published), but HEAD cannot pass it.
+    let full = case(&g["head"], "head_full");
+    let mut b = golden_bank(u16_of(&full["slots"]), WordOrder::HighFirst);
+    let program = ["rapid_x_z", "spindle_on", "dwell"].map(|n| {
+        let r: [u16; 16] = slot_of(n).try_into().unwrap();
+        r
+    });
+    assert!(publish(&mut b, &program).is_ok());
+    assert_eq!(
+        (reg(&mut b, TAIL), reg(&mut b, HEAD)),
+        (u16_of(&full["tail"]), u16_of(&full["head"]))
+    );
+    assert!(slot_write(&mut b, full, &slot_of("feed_x")).is_ok());
+    assert_eq!(head_write(&mut b, full), expect(full));
+    assert_eq!(reg(&mut b, HEAD), u16_of(&full["head"]));
+    // RUN: the rapid is taken at once, the spindle start once done, and the dwell is under
+    // way: TAIL 2. Now HEAD 3 wraps to 0.
+    let wraps = case(&g["head"], "head_wraps");
+    write(&mut b, CONTROL, RUN).unwrap();
+    run(&mut b, 5.0, |b| reg(b, TAIL) == u16_of(&wraps["tail"]));
+    assert_eq!(
+        (reg(&mut b, TAIL), reg(&mut b, HEAD)),
+        (u16_of(&wraps["tail"]), u16_of(&wraps["head"]))
+    );
+    assert!(slot_write(&mut b, wraps, &slot_of("feed_x")).is_ok());
+    assert_eq!(head_write(&mut b, wraps), expect(wraps));
+    assert_eq!(reg(&mut b, HEAD), u16_of(&wraps["new_head"]));
+    assert_eq!(b.queue.len(), 2, "the dwell in flight and the feed");
+}
