@@ -2,13 +2,17 @@
 //! and what it executed, as JSON lines, so that a run can be audited and replayed.
 //!
 //! One event per line, each written with a single `write` to a file opened for appending and
-//! never truncated: a crash loses at most the event being written, and a torn last line is
-//! reported, not fatal, when the log is read. Times are seconds since the run started. The
-//! format is the same for every transport.
+//! never truncated or rewritten: a crash or a full disk loses at most the event being
+//! written. The next run to open the log closes such a torn line off with a newline before
+//! its first event, so the torn bytes stay, on a line of their own, and the new run starts
+//! clean. The reader skips a torn or unreadable line wherever it is and says which it
+//! skipped and why. Times are seconds since the run started. The format is the same for
+//! every transport.
 
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::fs::{File, OpenOptions};
-use std::io::Write;
+use std::io::{Read as _, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
@@ -114,23 +118,13 @@ pub struct Record {
 /// Why a log could not be written or read.
 #[derive(Debug, thiserror::Error)]
 pub enum LogError {
-    /// The file could not be opened or written.
+    /// The file could not be opened, read or written.
     #[error("executed-path log {path}: {error}")]
     Io {
         /// The log.
         path: PathBuf,
         /// Why.
         error: std::io::Error,
-    },
-    /// A line that is not an event (other than a torn last line).
-    #[error("executed-path log {path} line {line}: not a log event: {error}")]
-    Parse {
-        /// The log.
-        path: PathBuf,
-        /// 1-based line.
-        line: usize,
-        /// Why.
-        error: serde_json::Error,
     },
 }
 
@@ -156,16 +150,21 @@ enum Sink {
 }
 
 impl ExecLog {
-    /// Open `path` for appending (created if missing; what is there is kept).
+    /// Open `path` for appending (created if missing; what is there is kept). If its last
+    /// line is torn (no newline at the end: a crash or a full disk mid-write), a newline is
+    /// appended first to close it off, so this run's events start on a line of their own.
     pub fn append(path: &Path) -> Result<ExecLog, LogError> {
-        let file = OpenOptions::new()
+        let io = |error| LogError::Io {
+            path: path.to_owned(),
+            error,
+        };
+        let mut file = OpenOptions::new()
             .create(true)
+            .read(true)
             .append(true)
             .open(path)
-            .map_err(|error| LogError::Io {
-                path: path.to_owned(),
-                error,
-            })?;
+            .map_err(io)?;
+        close_torn_line(&mut file).map_err(io)?;
         Ok(ExecLog {
             sink: Sink::File {
                 file: Arc::new(Mutex::new(file)),
@@ -221,58 +220,183 @@ impl ExecLog {
     }
 }
 
+/// Append the newline a torn last line lacks; nothing for an empty file (or one that is not
+/// a regular file, which has no length) or one that ends with a newline. Only ever appends.
+fn close_torn_line(file: &mut File) -> std::io::Result<()> {
+    if file.metadata()?.len() == 0 {
+        return Ok(());
+    }
+    let mut last = [0u8];
+    file.seek(SeekFrom::End(-1))?;
+    file.read_exact(&mut last)?;
+    if last != [b'\n'] {
+        file.write_all(b"\n")?;
+        file.flush()?;
+    }
+    Ok(())
+}
+
 /// A writer that panicked mid-event left at most a torn line in a file (which [`read`]
-/// tolerates) or a whole record in memory: either way the log is still usable.
+/// skips) or a whole record in memory: either way the log is still usable.
 fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     mutex
         .lock()
         .unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
-/// A log as read back: its records, and whether the last line was torn (a crash mid-write).
+/// A log as read back: its events, and the lines that were not events.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Read {
-    /// Every complete event, in order.
+    /// Every event read, in order.
     pub records: Vec<Record>,
-    /// The last line was incomplete and was left out.
+    /// The last line had no newline and was not an event (a crash mid-write that no run has
+    /// appended after yet); it is among `skipped`.
     pub torn_tail: bool,
+    /// The lines left out, in order: torn writes and anything else that is not an event.
+    pub skipped: Vec<Skipped>,
 }
 
-/// Read a log. A last line without its newline that does not parse is a torn write and is
-/// left out; any other bad line is an error naming it.
+/// A line of a log that [`read`] left out.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Skipped {
+    /// 1-based line of the file.
+    pub line: usize,
+    /// Why, in a few words: torn (the event breaks off), or not a log event and the
+    /// parser's complaint.
+    pub reason: String,
+}
+
+/// Read a log. A line that is not an event (a torn write, wherever it is, or anything else)
+/// is skipped and listed in [`Read::skipped`]; only a file that cannot be read at all is an
+/// error. Blank lines are passed over.
 pub fn read(path: &Path) -> Result<Read, LogError> {
-    let text = std::fs::read_to_string(path).map_err(|error| LogError::Io {
+    let bytes = std::fs::read(path).map_err(|error| LogError::Io {
         path: path.to_owned(),
         error,
     })?;
-    let ends_clean = text.is_empty() || text.ends_with('\n');
-    let lines: Vec<&str> = text.lines().collect();
-    let mut records = Vec::with_capacity(lines.len());
-    let mut torn_tail = false;
-    for (i, l) in lines.iter().enumerate() {
-        if l.trim().is_empty() {
-            continue;
-        }
-        match serde_json::from_str::<Record>(l) {
-            Ok(r) => records.push(r),
-            Err(_) if i + 1 == lines.len() && !ends_clean => torn_tail = true,
-            Err(error) => {
-                return Err(LogError::Parse {
-                    path: path.to_owned(),
-                    line: i + 1,
-                    error,
-                })
-            }
-        }
-    }
-    Ok(Read { records, torn_tail })
+    Ok(parse(&bytes))
 }
 
-/// What `whirl log summary` prints.
+/// [`read`] of a log's bytes.
+fn parse(bytes: &[u8]) -> Read {
+    let ends_clean = bytes.is_empty() || bytes.ends_with(b"\n");
+    let mut lines: Vec<&[u8]> = bytes.split(|&b| b == b'\n').collect();
+    if ends_clean {
+        // What follows the last newline: nothing.
+        lines.pop();
+    }
+    let mut read = Read {
+        records: Vec::with_capacity(lines.len()),
+        torn_tail: false,
+        skipped: Vec::new(),
+    };
+    let count = lines.len();
+    for (i, line) in lines.into_iter().enumerate() {
+        let line = line.strip_suffix(b"\r").unwrap_or(line);
+        if line.trim_ascii().is_empty() {
+            continue;
+        }
+        if let Err(reason) = parse_line(line, &mut read.records) {
+            read.torn_tail |= i + 1 == count && !ends_clean;
+            read.skipped.push(Skipped {
+                line: i + 1,
+                reason,
+            });
+        }
+    }
+    read
+}
+
+/// How every event line begins (the writer puts `t` first, and nothing else in an event is
+/// an object with a `t`; inside a string the quotes would be escaped).
+const EVENT_START: &[u8] = b"{\"t\":";
+
+/// Push the event `line` holds onto `records`, or say why it is not one. A line on which an
+/// older whirl appended a run's first event after a torn write (`{"t":1.1,"event":"ac{"t":0,…`)
+/// gives up the events that are whole, and still counts as skipped for the torn one.
+fn parse_line(line: &[u8], records: &mut Vec<Record>) -> Result<(), String> {
+    let error = match serde_json::from_slice::<Record>(line) {
+        Ok(record) => {
+            records.push(record);
+            return Ok(());
+        }
+        Err(error) => error,
+    };
+    let mut starts: Vec<usize> = (1..line.len())
+        .filter(|&k| line[k..].starts_with(EVENT_START))
+        .collect();
+    if !starts.is_empty() {
+        starts.insert(0, 0);
+        let pieces: Vec<Option<Record>> = starts
+            .iter()
+            .zip(starts.iter().skip(1).chain([&line.len()]))
+            .map(|(&a, &b)| serde_json::from_slice(&line[a..b]).ok())
+            .collect();
+        let whole = pieces.iter().flatten().count();
+        if whole > 0 {
+            records.extend(pieces.into_iter().flatten());
+            return match starts.len() - whole {
+                0 => Ok(()),
+                torn => Err(format!(
+                    "torn: events run together on one line, {torn} broken off, {whole} kept"
+                )),
+            };
+        }
+    }
+    Err(if error.is_eof() {
+        "torn: the event breaks off".to_owned()
+    } else {
+        format!("not a log event: {error}")
+    })
+}
+
+/// What `whirl log summary` prints: the totals over the file, then each run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Summary {
-    /// Runs in the log (Start events).
+    /// Runs in the log: one for each Start event, and one more for events before the first
+    /// Start (whose Start was lost), if there are any.
     pub runs: usize,
+    /// Lines sent, acknowledged, refused, over every run.
+    pub sent: usize,
+    /// See `sent`.
+    pub acked: usize,
+    /// See `sent`.
+    pub errors: usize,
+    /// Alarms raised, over every run.
+    pub alarms: usize,
+    /// Moves the controller reported executing, over every run.
+    pub executed: usize,
+    /// Program lines that some run executed more than once (a resumed run must have none),
+    /// as far as executed moves name their lines; a line that two runs each executed once
+    /// is not among them.
+    pub executed_twice: Vec<usize>,
+    /// Seconds the runs took, added up.
+    pub duration_s: f64,
+    /// How the last run ended: `None` if it has no End event.
+    pub completed: Option<bool>,
+    /// The last line was torn (it is among `skipped_lines`).
+    pub torn_tail: bool,
+    /// How many lines were not events and were left out.
+    pub skipped: usize,
+    /// Which, and why.
+    pub skipped_lines: Vec<Skipped>,
+    /// Each run, in the order of the file.
+    pub per_run: Vec<RunSummary>,
+}
+
+/// One run of a log: from a Start event to the next (or the end of the file).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunSummary {
+    /// The program or job its Start names (`None` for events before the first Start).
+    pub program: Option<String>,
+    /// Its number of lines, from the Start event.
+    pub lines: Option<usize>,
+    /// How it was sent (serial, modbus-tcp, …), from the Start event.
+    pub transport: Option<String>,
+    /// The time of its Start event, s (the log's times count from each run's start).
+    pub start_s: Option<f64>,
+    /// Seconds from its first to its last event.
+    pub duration_s: f64,
     /// Lines sent, acknowledged, refused.
     pub sent: usize,
     /// See `sent`.
@@ -283,228 +407,158 @@ pub struct Summary {
     pub alarms: usize,
     /// Moves the controller reported executing.
     pub executed: usize,
-    /// Program lines executed more than once (a resumed run must have none), as far as
-    /// executed moves name their lines.
+    /// Program lines this run executed more than once, as far as executed moves name
+    /// their lines.
     pub executed_twice: Vec<usize>,
-    /// Seconds from the first to the last event.
-    pub duration_s: f64,
-    /// How the last run ended.
-    pub completed: Option<bool>,
-    /// The last line was torn.
-    pub torn_tail: bool,
+    /// How it ended.
+    pub ended: Ended,
+    /// Why it stopped, if its End event says.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+}
+
+/// How a run ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Ended {
+    /// Its End event says every line was executed.
+    Completed,
+    /// Its End event says it stopped short (see [`RunSummary::reason`]).
+    Stopped,
+    /// It has no End event: the bridge was killed, crashed or lost the log mid-run.
+    Interrupted,
 }
 
 impl Summary {
-    /// Summarise a log.
+    /// Summarise a log, run by run.
     pub fn of(log: &Read) -> Summary {
-        let mut s = Summary {
-            runs: 0,
-            sent: 0,
-            acked: 0,
-            errors: 0,
-            alarms: 0,
-            executed: 0,
-            executed_twice: Vec::new(),
-            duration_s: 0.0,
-            completed: None,
-            torn_tail: log.torn_tail,
-        };
-        let mut seen = std::collections::BTreeMap::<usize, usize>::new();
+        let mut runs: Vec<Tally> = Vec::new();
         for r in &log.records {
-            match &r.event {
-                Event::Start { .. } => s.runs += 1,
-                Event::Sent { .. } => s.sent += 1,
-                Event::Ack { .. } => s.acked += 1,
-                Event::Error { .. } => s.errors += 1,
-                Event::Alarm { .. } => s.alarms += 1,
-                Event::Executed { line, .. } => {
-                    s.executed += 1;
-                    if let Some(line) = line {
-                        *seen.entry(*line).or_default() += 1;
-                    }
-                }
-                Event::End { completed, .. } => s.completed = Some(*completed),
-                Event::Status { .. } | Event::Message { .. } => {}
+            match (&r.event, runs.last_mut()) {
+                (Event::Start { .. }, _) | (_, None) => runs.push(Tally::new(r)),
+                (_, Some(run)) => run.add(r),
             }
         }
-        s.executed_twice = seen
-            .into_iter()
-            .filter(|(_, n)| *n > 1)
-            .map(|(l, _)| l)
+        let per_run: Vec<RunSummary> = runs.into_iter().map(Tally::finish).collect();
+        let total = |count: fn(&RunSummary) -> usize| per_run.iter().map(count).sum();
+        let mut executed_twice: Vec<usize> = per_run
+            .iter()
+            .flat_map(|run| run.executed_twice.iter().copied())
             .collect();
-        if let (Some(a), Some(b)) = (log.records.first(), log.records.last()) {
-            s.duration_s = b.t - a.t;
+        executed_twice.sort_unstable();
+        executed_twice.dedup();
+        Summary {
+            runs: per_run.len(),
+            sent: total(|run| run.sent),
+            acked: total(|run| run.acked),
+            errors: total(|run| run.errors),
+            alarms: total(|run| run.alarms),
+            executed: total(|run| run.executed),
+            executed_twice,
+            duration_s: per_run.iter().map(|run| run.duration_s).sum(),
+            completed: per_run.last().and_then(|run| match run.ended {
+                Ended::Completed => Some(true),
+                Ended::Stopped => Some(false),
+                Ended::Interrupted => None,
+            }),
+            torn_tail: log.torn_tail,
+            skipped: log.skipped.len(),
+            skipped_lines: log.skipped.clone(),
+            per_run,
         }
-        s
+    }
+}
+
+/// A run being summarised.
+struct Tally {
+    run: RunSummary,
+    /// How many moves executed each program line.
+    seen: BTreeMap<usize, usize>,
+    /// The times of its first and last events.
+    first_t: f64,
+    last_t: f64,
+}
+
+impl Tally {
+    /// A run that begins with `first` (its Start event, or the first event of a log that
+    /// lost its Start).
+    fn new(first: &Record) -> Tally {
+        let (program, lines, transport, start_s) = match &first.event {
+            Event::Start {
+                program,
+                lines,
+                transport,
+            } => (
+                Some(program.clone()),
+                Some(*lines),
+                Some(transport.clone()),
+                Some(first.t),
+            ),
+            _ => (None, None, None, None),
+        };
+        let mut tally = Tally {
+            run: RunSummary {
+                program,
+                lines,
+                transport,
+                start_s,
+                duration_s: 0.0,
+                sent: 0,
+                acked: 0,
+                errors: 0,
+                alarms: 0,
+                executed: 0,
+                executed_twice: Vec::new(),
+                ended: Ended::Interrupted,
+                reason: None,
+            },
+            seen: BTreeMap::new(),
+            first_t: first.t,
+            last_t: first.t,
+        };
+        tally.add(first);
+        tally
+    }
+
+    fn add(&mut self, r: &Record) {
+        let run = &mut self.run;
+        self.last_t = r.t;
+        match &r.event {
+            Event::Sent { .. } => run.sent += 1,
+            Event::Ack { .. } => run.acked += 1,
+            Event::Error { .. } => run.errors += 1,
+            Event::Alarm { .. } => run.alarms += 1,
+            Event::Executed { line, .. } => {
+                run.executed += 1;
+                if let Some(line) = line {
+                    *self.seen.entry(*line).or_default() += 1;
+                }
+            }
+            Event::End { completed, reason } => {
+                run.ended = if *completed {
+                    Ended::Completed
+                } else {
+                    Ended::Stopped
+                };
+                run.reason.clone_from(reason);
+            }
+            Event::Start { .. } | Event::Status { .. } | Event::Message { .. } => {}
+        }
+    }
+
+    fn finish(self) -> RunSummary {
+        RunSummary {
+            duration_s: self.last_t - self.first_t,
+            executed_twice: self
+                .seen
+                .into_iter()
+                .filter(|&(_, n)| n > 1)
+                .map(|(line, _)| line)
+                .collect(),
+            ..self.run
+        }
     }
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn sample() -> Vec<(f64, Event)> {
-        vec![
-            (
-                0.0,
-                Event::Start {
-                    program: "p.nc".into(),
-                    lines: 2,
-                    transport: "serial".into(),
-                },
-            ),
-            (
-                0.1,
-                Event::Sent {
-                    line: 1,
-                    text: "G1 X1 F100".into(),
-                },
-            ),
-            (0.2, Event::Ack { line: 1 }),
-            (
-                0.3,
-                Event::Status {
-                    state: "Run".into(),
-                    pos: [0.5, 0.0, 0.0],
-                    blocks_free: Some(34),
-                    rx_free: Some(1000),
-                    line: None,
-                },
-            ),
-            (
-                0.9,
-                Event::Executed {
-                    line: Some(1),
-                    times: [0.2, 0.8],
-                    from: [0.0; 3],
-                    to: [1.0, 0.0, 0.0],
-                    rapid: false,
-                },
-            ),
-            (
-                1.0,
-                Event::End {
-                    completed: true,
-                    reason: None,
-                },
-            ),
-        ]
-    }
-
-    #[test]
-    fn events_round_trip_one_per_line_and_appending_keeps_what_was_there() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("exec.jsonl");
-        for (t, e) in sample() {
-            ExecLog::append(&path).unwrap().write(t, e).unwrap();
-        }
-        let mut log = ExecLog::append(&path).unwrap();
-        log.write(
-            2.0,
-            Event::Message {
-                text: "again".into(),
-            },
-        )
-        .unwrap();
-        let text = std::fs::read_to_string(&path).unwrap();
-        assert_eq!(text.lines().count(), sample().len() + 1);
-        assert!(text.lines().all(|l| l.starts_with("{\"t\":")));
-        let read = read(&path).unwrap();
-        assert!(!read.torn_tail);
-        let back: Vec<(f64, Event)> = read.records.into_iter().map(|r| (r.t, r.event)).collect();
-        assert_eq!(&back[..sample().len()], &sample()[..]);
-    }
-
-    #[test]
-    fn a_memory_log_keeps_every_event_in_order_for_every_clone() {
-        let mut log = ExecLog::memory();
-        let mut clone = log.clone();
-        for (i, (t, e)) in sample().into_iter().enumerate() {
-            if i % 2 == 0 {
-                log.write(t, e).unwrap();
-            } else {
-                clone.write(t, e).unwrap();
-            }
-        }
-        let kept: Vec<(f64, Event)> = log.records().into_iter().map(|r| (r.t, r.event)).collect();
-        assert_eq!(kept, sample());
-        assert_eq!(clone.records().len(), sample().len());
-        // Nothing is kept by the others.
-        let mut discard = ExecLog::discard();
-        discard.write(0.0, sample()[0].1.clone()).unwrap();
-        assert!(discard.records().is_empty());
-    }
-
-    #[test]
-    fn clones_from_two_threads_write_whole_events_to_one_file() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("exec.jsonl");
-        let log = ExecLog::append(&path).unwrap();
-        std::thread::scope(|scope| {
-            for k in 0..2 {
-                let mut log = log.clone();
-                scope.spawn(move || {
-                    for i in 0..500 {
-                        let text = format!("writer {k} event {i} {}", "x".repeat(200));
-                        log.write(f64::from(i), Event::Message { text }).unwrap();
-                    }
-                });
-            }
-        });
-        let read = read(&path).unwrap();
-        assert_eq!(read.records.len(), 1000);
-        assert!(!read.torn_tail);
-    }
-
-    #[test]
-    fn a_torn_last_line_is_left_out_and_a_bad_middle_line_is_named() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("exec.jsonl");
-        let mut log = ExecLog::append(&path).unwrap();
-        for (t, e) in sample() {
-            log.write(t, e).unwrap();
-        }
-        let mut f = OpenOptions::new().append(true).open(&path).unwrap();
-        f.write_all(b"{\"t\":1.1,\"event\":\"ac").unwrap();
-        let r = read(&path).unwrap();
-        assert!(r.torn_tail);
-        assert_eq!(r.records.len(), sample().len());
-        std::fs::write(&path, "{\"t\":0,\"event\":\"ack\",\"line\":1}\nnot json\n{\"t\":1,\"event\":\"ack\",\"line\":2}\n").unwrap();
-        let e = read(&path).unwrap_err();
-        assert!(matches!(e, LogError::Parse { line: 2, .. }), "{e}");
-    }
-
-    #[test]
-    fn the_summary_counts_and_finds_lines_executed_twice() {
-        let mut records: Vec<Record> = sample()
-            .into_iter()
-            .map(|(t, event)| Record { t, event })
-            .collect();
-        let s = Summary::of(&Read {
-            records: records.clone(),
-            torn_tail: false,
-        });
-        assert_eq!(
-            (s.runs, s.sent, s.acked, s.errors, s.executed),
-            (1, 1, 1, 0, 1)
-        );
-        assert_eq!(s.completed, Some(true));
-        assert!((s.duration_s - 1.0).abs() < 1e-12);
-        assert!(s.executed_twice.is_empty());
-        records.push(Record {
-            t: 1.5,
-            event: Event::Executed {
-                line: Some(1),
-                times: [1.2, 1.4],
-                from: [0.0; 3],
-                to: [1.0, 0.0, 0.0],
-                rapid: false,
-            },
-        });
-        let s = Summary::of(&Read {
-            records,
-            torn_tail: false,
-        });
-        assert_eq!(s.executed_twice, vec![1]);
-    }
-}
+mod tests;

@@ -90,6 +90,7 @@ mod tests {
                 },
             ],
             torn_tail: false,
+            skipped: Vec::new(),
         };
         let plots = axis_plots(&read);
         assert_eq!(plots.len(), 3);

@@ -8,6 +8,7 @@ mod dry_run;
 mod layers;
 mod link;
 mod linkage;
+mod logs;
 mod machines;
 mod modbus_map;
 mod modbus_wire;
