@@ -1,6 +1,7 @@
-//! Planner benchmarks: node solves per second, and planning whole grooves (one of 100 mm).
+//! Planner benchmarks: node solves per second, planning whole grooves (one of 100 mm), and
+//! planning from dense profile points (up to a million).
 //!
-//! Run with `cargo bench --bench planner`; the README quotes the figures.
+//! Run with `cargo bench --bench planner`; docs/benchmarks.md quotes the figures.
 
 use divan::{black_box, Bencher};
 use glam::DVec2;
@@ -9,6 +10,7 @@ use std::path::Path;
 use whirl::config::job::Job;
 use whirl::config::machine::MachineProfile;
 use whirl::geometry::linkage::{Linkage, Ring, Whirling};
+use whirl::geometry::profile::points::{self, Section};
 use whirl::geometry::profile::ProfilePoint;
 
 fn main() {
@@ -69,4 +71,36 @@ fn plan_example(bencher: Bencher, name: &str) {
     let job = example(name);
     let machine = MachineProfile::builtin_sim().unwrap();
     bencher.bench(|| black_box(whirl::plan::plan(&job, &machine).unwrap().report.segments));
+}
+
+/// `n` points over half a period of the double-start groove, ρ = 30 − 4·cos 2φ for
+/// 0 ≤ φ ≤ 90°, written to 10 decimals as a CAD export would, as the text of a points file.
+fn half_period_csv(n: usize) -> String {
+    let mut csv = String::from("x,y\n");
+    for k in 0..n {
+        let phi = PI / 2.0 * k as f64 / (n - 1) as f64;
+        let rho = 30.0 - 4.0 * (2.0 * phi).cos();
+        csv.push_str(&format!(
+            "{:.10},{:.10}\n",
+            rho * phi.cos(),
+            rho * phi.sin()
+        ));
+    }
+    csv
+}
+
+/// The double-start job (Δ = 5 µm, 24 mm of groove) from a points file of `n` points, mirrored
+/// as its own profile is: reading the text, validating the points (outliers included), the
+/// spline fit and the whole plan, as `whirl plan` does but for the file reads and writes.
+#[divan::bench(args = [10_000, 100_000, 1_000_000], sample_count = 5)]
+fn dense_profile(bencher: Bencher, n: usize) {
+    let csv = half_period_csv(n);
+    let job = example("double-start");
+    let machine = MachineProfile::builtin_sim().unwrap();
+    bencher.bench(|| {
+        let rows = points::read_csv(black_box(&csv)).unwrap();
+        let mut job = job.clone();
+        job.profile = points::profile(&rows, Section::Transverse, true, job.p(), 2).unwrap();
+        black_box(whirl::plan::plan(&job, &machine).unwrap().report.segments)
+    });
 }

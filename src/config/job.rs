@@ -14,6 +14,9 @@ use serde::Deserialize;
 use std::f64::consts::TAU;
 use std::path::{Path, PathBuf};
 
+#[cfg(test)]
+mod tests;
+
 /// A job, read and checked: the job file's values, and the groove's profile built from its
 /// points (read relative to the job file) or its standard. Everything the planner needs,
 /// as values: planning reads no file.
@@ -222,6 +225,16 @@ impl Job {
         })?;
         file.validate()?;
         let profile = file.profile(path.parent().unwrap_or(Path::new("")))?;
+        // Δ against the groove it is for: beyond the depth it bounds nothing. (The planner
+        // refuses one finer than the machine's numbers can hold; that needs the machine.)
+        let (rho_min, rho_max) = profile.radius_range();
+        if let Some(why) = depth_refusal(file.cut.delta, rho_min, rho_max) {
+            return Err(JobError::Invalid {
+                key: "cut.delta",
+                value: show_number(file.cut.delta),
+                why,
+            });
+        }
         let JobFile { groove, tool, cut } = file;
         Ok(Job {
             groove,
@@ -259,6 +272,35 @@ impl Job {
             edge_half_angle: self.tool.edge_arc_deg.unwrap_or(180.0).to_radians() / 2.0,
         }
     }
+}
+
+/// Why Δ = `delta` means nothing for a groove whose radii run from `rho_min` to `rho_max`:
+/// above the groove's depth, every groove lies within Δ of a plain cylinder, so nothing is
+/// being cut to any tolerance (and at 10³⁰⁸ the program's title line, which states Δ, runs off
+/// the controller's line length). `None` when Δ is within the depth.
+pub(crate) fn depth_refusal(delta: f64, rho_min: f64, rho_max: f64) -> Option<String> {
+    let depth = rho_max - rho_min;
+    (delta > depth).then(|| {
+        format!(
+            "above the groove's depth, {depth:.4} mm (ρ from {rho_min:.4} to {rho_max:.4} mm): \
+             an allowable error that large means nothing is cut to any tolerance"
+        )
+    })
+}
+
+/// A value for a message: Rust's shortest form, in exponent form outside 10⁻⁶ … 10⁹ (where
+/// the plain form spells out hundreds of digits: 1e308, 1e-12).
+pub(crate) fn show_number(v: f64) -> String {
+    if v != 0.0 && !(1e-6..1e9).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// A computed figure for a message: four significant digits, shown as [`show_number`] does.
+pub(crate) fn show_figure(v: f64) -> String {
+    show_number(format!("{v:.3e}").parse().unwrap_or(v))
 }
 
 impl Groove {

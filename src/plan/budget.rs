@@ -1,8 +1,10 @@
 //! The error budget of kinematics.md: how Δ is shared between interpolation, the feed scallop,
-//! the insert cusp, controller blending and number rounding.
+//! the insert cusp, controller blending, number rounding and the material left in concave
+//! stretches too shallow to refuse.
 //!
 //! The scallop and the cusp follow from the cut (feed, speeds) and the tool; blending and
-//! rounding from the machine; interpolation gets what is left, and node choice works to it.
+//! rounding from the machine; the concave stretches from the profile and the nose;
+//! interpolation gets what is left, and node choice works to it.
 
 use crate::geometry::linkage::{Linkage, Whirling};
 use crate::plan::table::Table;
@@ -22,6 +24,8 @@ pub struct Budget {
     pub blend: f64,
     /// Rounding of the written numbers and of the controller's number type.
     pub rounding: f64,
+    /// Material left in concave stretches tighter than the nose but too shallow to refuse.
+    pub concave: f64,
     /// What is left for interpolation between nodes.
     pub interpolation: f64,
 }
@@ -30,7 +34,8 @@ pub struct Budget {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error(
     "Δ = {delta} mm is spent before interpolation: feed scallop {scallop:.5} mm, insert cusp \
-     {cusp:.5} mm, blending {blend:.5} mm, rounding {rounding:.5} mm; {hint}"
+     {cusp:.5} mm, blending {blend:.5} mm, rounding {rounding:.5} mm, concave stretches \
+     {concave:.5} mm; {hint}"
 )]
 pub struct BudgetError {
     /// Δ.
@@ -43,6 +48,8 @@ pub struct BudgetError {
     pub blend: f64,
     /// Rounding.
     pub rounding: f64,
+    /// Concave stretches.
+    pub concave: f64,
     /// What to change.
     pub hint: String,
 }
@@ -58,12 +65,15 @@ impl Budget {
         cusp: f64,
         blend: f64,
         rounding: f64,
+        concave: f64,
         feed: f64,
     ) -> Result<Budget, BudgetError> {
-        let interpolation = delta - scallop - cusp - blend - rounding;
+        // In this order: subtracting a concave share of 0 leaves the other figures exactly as
+        // they were.
+        let interpolation = delta - scallop - cusp - blend - rounding - concave;
         if interpolation < MIN_INTERPOLATION_SHARE * delta {
             // The scallop grows with the square of the feed.
-            let room = (1.0 - MIN_INTERPOLATION_SHARE) * delta - cusp - blend - rounding;
+            let room = (1.0 - MIN_INTERPOLATION_SHARE) * delta - cusp - blend - rounding - concave;
             let hint = if room > 0.0 && scallop > 0.0 {
                 format!(
                     "lower cut.axial_feed to at most {:.4} mm (scallop ∝ feed²)",
@@ -78,6 +88,7 @@ impl Budget {
                 cusp,
                 blend,
                 rounding,
+                concave,
                 hint,
             });
         }
@@ -87,6 +98,7 @@ impl Budget {
             cusp,
             blend,
             rounding,
+            concave,
             interpolation,
         })
     }

@@ -10,18 +10,20 @@ pub mod path;
 pub mod scallop;
 pub mod segment;
 pub mod table;
+#[cfg(test)]
+mod tests;
 
-use crate::config::job::Job;
+use crate::config::job::{depth_refusal, show_figure, show_number, Job};
 use crate::config::machine::MachineProfile;
 use crate::geometry::linkage::{Linkage, Ring, Whirling};
-use crate::geometry::profile::{ConcaveStretch, Profile};
+use crate::geometry::profile::{ConcaveStretch, Profile, Rounding};
 use crate::plan::table::{Table, TableError};
-use crate::post::gcode::format::{decimals_for, FormatError};
+use crate::post::gcode::format::{decimals_for, MAX_DECIMALS};
 use crate::post::gcode::writer::{self, PostSettings};
 use crate::program::limits::{check_limits, LimitError};
 use crate::program::timing::cycle_time_s;
 use crate::program::Program;
-use budget::{Budget, BudgetError};
+use budget::{Budget, BudgetError, MIN_INTERPOLATION_SHARE};
 use interference::Interference;
 use path::PathSpec;
 use serde::Serialize;
@@ -60,6 +62,9 @@ pub struct Report {
     pub blend_mm: f64,
     /// Rounding of the numbers written and held by the controller, mm.
     pub rounding_mm: f64,
+    /// Material left in concave stretches tighter than the nose but too shallow to refuse
+    /// (at most [`CONCAVE_SHARE`] of Δ), mm.
+    pub concave_mm: f64,
     /// Bound on the profile error: the sum of the parts above plus the table's accuracy, mm.
     pub max_error_mm: f64,
     /// Δ, mm.
@@ -83,9 +88,19 @@ pub struct Report {
 /// Why a job cannot be planned.
 #[derive(Debug, thiserror::Error)]
 pub enum PlanError {
-    /// Concave stretches the nose cannot follow.
-    #[error("{}", concave_message(.0, *.1))]
-    Concave(Vec<ConcaveStretch>, f64),
+    /// Concave stretches the nose cannot follow, leaving more material than is tolerated.
+    #[error("{}", concave_message(stretches, *nose, *limit, rounding.as_ref()))]
+    Concave {
+        /// The stretches.
+        stretches: Vec<ConcaveStretch>,
+        /// The nose radius, mm.
+        nose: f64,
+        /// The most material a tolerated stretch may leave, mm ([`CONCAVE_SHARE`] of Δ).
+        limit: f64,
+        /// When the rounding of the profile's points alone can bend it tighter than the nose:
+        /// the radius it can bend it to across the groove, mm, and how.
+        rounding: Option<(f64, Rounding)>,
+    },
     /// An internal-whirling ring too small to enclose the work.
     #[error(
         "the ring is too small to enclose the work: R·cos δ − r = {reach:.3} mm does not \
@@ -113,6 +128,17 @@ pub enum PlanError {
         /// Installation angles that would work, if any.
         hint: String,
     },
+    /// Δ out of what this job can mean: finer than the numbers can hold, or beyond the
+    /// groove's depth.
+    #[error("cut.delta = {} mm is {why}", show_number(*.value))]
+    Delta {
+        /// Δ, mm.
+        value: f64,
+        /// The bound it passes, mm.
+        bound: f64,
+        /// Which bound and why.
+        why: String,
+    },
     /// Δ cannot be met.
     #[error(transparent)]
     Budget(#[from] BudgetError),
@@ -134,9 +160,6 @@ pub enum PlanError {
         /// Δ, mm.
         delta: f64,
     },
-    /// Numbers cannot be written precisely enough.
-    #[error("number format: {0}")]
-    Format(FormatError),
     /// The machine cannot run it.
     #[error("machine limits: move {index} of the planned path: {limit}", index = .limit.index())]
     Limits {
@@ -148,12 +171,39 @@ pub enum PlanError {
     Post(#[from] writer::PostError),
 }
 
-fn concave_message(stretches: &[ConcaveStretch], nose: f64) -> String {
+/// The share of Δ that a concave stretch tighter than the nose may leave before the job is
+/// refused; what the deepest such stretch leaves is counted in the error budget. A spline
+/// through dense points follows their rounding, kinking tighter than any nose wherever the
+/// rounding zig-zags: at 10 decimals and 0.05 µm apart that leaves 10⁻¹¹ mm, which is no reason
+/// to refuse a job, while a root too tight for the nose leaves a good share of Δ or more.
+pub const CONCAVE_SHARE: f64 = 0.01;
+
+/// Stretches listed in a refusal; a dense profile (a million points) can have hundreds of
+/// thousands, and the deepest say what there is to say.
+const CONCAVE_LISTED: usize = 10;
+
+fn concave_message(
+    stretches: &[ConcaveStretch],
+    nose: f64,
+    limit: f64,
+    rounding: Option<&(f64, Rounding)>,
+) -> String {
     let mut s = format!(
         "the profile has concave stretches tighter than the nose radius {nose} mm, which the \
-         insert cannot reach:"
+         insert cannot reach, leaving more than {} mm of material (Δ/{:.0}):",
+        show_figure(limit),
+        1.0 / CONCAVE_SHARE
     );
-    for c in stretches {
+    let mut listed: Vec<&ConcaveStretch> = stretches.iter().collect();
+    if listed.len() > CONCAVE_LISTED {
+        // The deepest first (the nose not fitting in at all is deepest), then in profile order.
+        listed.sort_by(|a, b| b.depth_left.total_cmp(&a.depth_left));
+        listed.truncate(CONCAVE_LISTED);
+    }
+    for c in stretches
+        .iter()
+        .filter(|c| listed.iter().any(|l| std::ptr::eq(*l, *c)))
+    {
         let depth = if c.depth_left.is_finite() {
             format!("leaves {:.4} mm of material", c.depth_left)
         } else {
@@ -165,7 +215,29 @@ fn concave_message(stretches: &[ConcaveStretch], nose: f64) -> String {
             c.at.x, c.at.y, c.min_radius
         );
     }
-    s.push_str("\nuse a smaller nose radius or a profile with larger root radii");
+    if stretches.len() > CONCAVE_LISTED {
+        let _ = write!(
+            s,
+            "\n  … and {} more, none deeper ({} in all)",
+            stretches.len() - CONCAVE_LISTED,
+            stretches.len()
+        );
+    }
+    match rounding {
+        Some((radius, r)) => {
+            let _ = write!(
+                s,
+                "\nthe profile's points are as close as {} mm but written to decimals that put \
+                 them up to {} mm off the curve they sample: that rounding alone can bend the \
+                 spline through them to a radius of {} mm across the groove, tighter than the \
+                 nose; write the points to more decimals, or fewer of them",
+                show_figure(r.spacing),
+                show_figure(r.err),
+                show_figure(*radius),
+            );
+        }
+        None => s.push_str("\nuse a smaller nose radius or a profile with larger root radii"),
+    }
     s
 }
 
@@ -174,15 +246,50 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
     let profile = &job.profile;
     let p = job.p();
     let nose = job.tool.nose_radius;
-    let concave = profile.concave_stretches(p, nose);
-    if !concave.is_empty() {
-        return Err(PlanError::Concave(concave, nose));
-    }
-    let ring = job.ring();
-    let linkage = Linkage { p, ring };
-    let (_, rho_max) = profile.radius_range();
-    let x_clear = clear_x(&ring, rho_max)?;
     let delta = job.cut.delta;
+    let ring = job.ring();
+    let (rho_min, rho_max) = profile.radius_range();
+    // Numbers. A turn δc of the ring about the workpiece axis moves it off the groove's
+    // surface by p·n_z·δc (screw invariance: turning by δc and shifting by p·δc maps the
+    // groove onto itself), so C's rounding costs at most |p|·δc whatever the radius. The
+    // decimals written keep each axis's rounding below Δ/60, unless the controller's digit
+    // limit leaves C fewer (its rounding is then counted as it is). A controller that holds
+    // 32-bit floats adds half a unit in the last place of each axis's *machine* position:
+    // grbl and grblHAL compute every target as a 32-bit machine position (G92 only renames
+    // it), so C's share grows with the turns the groove takes. That share is a fixed cost of
+    // the job; beyond Δ/2 the job is refused.
+    let mm_per_deg = p.abs().to_radians();
+    let written = |d: u32| 0.5 * 10f64.powi(-(d as i32));
+    // Half the spacing of the controller's numbers: how far a held value can be from the
+    // one asked for.
+    let held = |v: f64| machine.number.spacing_at(v) / 2.0;
+    // An absurd Δ is refused before any work: one the numbers cannot hold, or one beyond the
+    // groove's depth. What passes gets its decimals here.
+    let x_clear_least = clear_x(&ring, rho_max).unwrap_or(0.0);
+    let (linear, angular) = check_delta(job, machine, (rho_min, rho_max), x_clear_least)?;
+    // Concave stretches tighter than the nose: the shallow ones are a cost, the others refused.
+    let limit = CONCAVE_SHARE * delta;
+    let (stretches, shallow): (Vec<_>, Vec<_>) = profile
+        .concave_stretches(p, nose)
+        .into_iter()
+        .partition(|c| c.depth_left > limit || c.depth_left.is_nan());
+    let concave = shallow.iter().map(|c| c.depth_left).fold(0.0, f64::max);
+    if !stretches.is_empty() {
+        // Whether the points' rounding can explain them (it can bend the curve tighter than
+        // the nose), in which case the data, not the groove, must change.
+        let rounding = profile
+            .rounding_radius(p)
+            .filter(|&radius| radius < nose)
+            .zip(profile.rounding());
+        return Err(PlanError::Concave {
+            stretches,
+            nose,
+            limit,
+            rounding,
+        });
+    }
+    let linkage = Linkage { p, ring };
+    let x_clear = clear_x(&ring, rho_max)?;
     let tolerance = TABLE_SHARE * delta;
     let table = Table::build(profile, &linkage, tolerance).map_err(|cause| PlanError::Table {
         cause,
@@ -195,17 +302,6 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         },
     )?;
 
-    // Numbers. A turn δc of the ring about the workpiece axis moves it off the groove's
-    // surface by p·n_z·δc (screw invariance: turning by δc and shifting by p·δc maps the
-    // groove onto itself), so C's rounding costs at most |p|·δc whatever the radius. The
-    // decimals written keep each axis's rounding below Δ/60, unless the controller's digit
-    // limit leaves C fewer (its rounding is then counted as it is). A controller that holds
-    // 32-bit floats adds half a unit in the last place of each axis's *machine* position:
-    // grbl and grblHAL compute every target as a 32-bit machine position (G92 only renames
-    // it), so C's share grows with the turns the groove takes. That share is a fixed cost of
-    // the job; beyond Δ/2 the job is refused.
-    let share = delta / 30.0;
-    let mm_per_deg = p.abs().to_radians();
     let (z_lo, z_hi) = table.z_range();
     let feed = job.cut.axial_feed;
     let z_from = job.groove.z_start + z_lo - 2.0 * feed;
@@ -217,16 +313,11 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         .fold(x_clear.abs(), f64::max);
     // The linked motion's turns, and one for where C starts.
     let c_max = 360.0 * ((z_to - z_from) / feed + 1.0);
-    let linear = decimals_for(share / 2.0).map_err(PlanError::Format)?;
-    let mut angular = decimals_for((share / 2.0) / mm_per_deg).map_err(PlanError::Format)?;
+    let mut angular = angular;
     if let Some(digits) = machine.dialect.max_number_digits() {
         let whole = c_max.log10().floor() as usize + 1;
         angular = angular.min(digits.saturating_sub(whole) as u32);
     }
-    let written = |d: u32| 0.5 * 10f64.powi(-(d as i32));
-    // Half the spacing of the controller's numbers: how far a held value can be from the
-    // one asked for.
-    let held = |v: f64| machine.number.spacing_at(v) / 2.0;
     let c_held = held(c_max) * mm_per_deg;
     if c_held > delta / 2.0 {
         return Err(PlanError::CPrecision {
@@ -250,7 +341,7 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         job.cut.workpiece_rpm,
         job.cut.ring_rpm,
     );
-    let budget = Budget::new(delta, scallop, cusp, blend, rounding, feed)?;
+    let budget = Budget::new(delta, scallop, cusp, blend, rounding, concave, feed)?;
     let nodes = segment::choose(&table, budget.interpolation - tolerance);
 
     let spec = PathSpec {
@@ -299,7 +390,8 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         cusp_mm: cusp,
         blend_mm: blend,
         rounding_mm: rounding,
-        max_error_mm: nodes.max_error + tolerance + scallop + cusp + blend + rounding,
+        concave_mm: concave,
+        max_error_mm: nodes.max_error + tolerance + scallop + cusp + blend + rounding + concave,
         delta_mm: delta,
         cycle_time_s: cycle_time_s(&path.program, machine),
         installation_angle_deg: ring.installation.to_degrees(),
@@ -314,6 +406,91 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         text,
         report,
     })
+}
+
+/// Refuse an absurd Δ at once, before any heavy work, naming `cut.delta`, its value and the
+/// bound it passes; otherwise return the decimals for X/Z and for C (before any digit limit of
+/// the controller).
+///
+/// - **Above the groove's depth** (ρ_max − ρ_min): an error that large bounds nothing; every
+///   groove would be "within Δ" of a plain cylinder.
+/// - **Below what the post can write:** the decimals keep each axis's rounding below Δ/60, and
+///   the post writes at most [`MAX_DECIMALS`] of them (±0.5·10⁻⁶ mm, and ±0.5·10⁻⁶° of C,
+///   |p|·π/180 mm a degree), so Δ must exceed 60·0.5·10⁻⁶·max(1, |p|·π/180) mm.
+/// - **Below what the controller's numbers hold at the groove's size:** rounding is a fixed
+///   cost that must leave interpolation [`MIN_INTERPOLATION_SHARE`] of Δ. Its least possible
+///   value follows from the decimals and from the number type's spacing at the smallest
+///   positions the program must reach whatever the table: X at the clear position, |Z| at
+///   least half the ring centre's run (the formed length and four feeds), and C at least
+///   `360°·(run/feed + 1)`. Any Δ refused here would be refused by the error budget after the
+///   table, the interference check and the scallop sweep (at Δ = 10⁻¹² mm: half a minute and
+///   more than a gigabyte).
+fn check_delta(
+    job: &Job,
+    machine: &MachineProfile,
+    (rho_min, rho_max): (f64, f64),
+    x_clear: f64,
+) -> Result<(u32, u32), PlanError> {
+    let delta = job.cut.delta;
+    let written = |d: u32| 0.5 * 10f64.powi(-(d as i32));
+    let held = |v: f64| machine.number.spacing_at(v) / 2.0;
+    if let Some(why) = depth_refusal(delta, rho_min, rho_max) {
+        return Err(PlanError::Delta {
+            value: delta,
+            bound: rho_max - rho_min,
+            why,
+        });
+    }
+    let share = delta / 30.0;
+    let mm_per_deg = job.p().abs().to_radians();
+    let finest = 0.5 * 10f64.powi(-(MAX_DECIMALS as i32));
+    let post_bound = 60.0 * finest * mm_per_deg.max(1.0);
+    let (Ok(linear), Ok(angular)) = (
+        decimals_for(share / 2.0),
+        decimals_for((share / 2.0) / mm_per_deg),
+    ) else {
+        return Err(PlanError::Delta {
+            value: delta,
+            bound: post_bound,
+            why: format!(
+                "below {} mm, the finest the post can write for this groove: at most \
+                 {MAX_DECIMALS} decimals, ±{} mm of X and Z and ±{}° of C ({} mm a degree), \
+                 and each axis's rounding must stay below Δ/60",
+                show_figure(post_bound),
+                show_figure(finest),
+                show_figure(finest),
+                show_figure(mm_per_deg),
+            ),
+        });
+    };
+    let feed = job.cut.axial_feed;
+    let run = job.groove.length + 4.0 * feed;
+    let (x_or_z, c_min) = (x_clear.abs().max(run / 2.0), 360.0 * (run / feed + 1.0));
+    let held_least = 2.0 * held(x_or_z) + held(c_min) * mm_per_deg;
+    let rounding_least = held_least + 2.0 * written(linear) + written(angular) * mm_per_deg;
+    let room = 1.0 - MIN_INTERPOLATION_SHARE;
+    if rounding_least > room * delta {
+        return Err(PlanError::Delta {
+            value: delta,
+            bound: rounding_least / room,
+            why: format!(
+                "below what the controller's numbers hold at this groove's size: X and Z reach \
+                 at least {} mm, where they are held to ±{} mm, and C at least {:.0}°, held to \
+                 ±{}° ({} mm); with the decimals written that is {} mm of rounding, more than \
+                 {:.0} % of Δ, which leaves interpolation less than the rest it needs (Δ must be \
+                 above {} mm)",
+                show_figure(x_or_z),
+                show_figure(held(x_or_z)),
+                c_min,
+                show_figure(held(c_min)),
+                show_figure(held(c_min) * mm_per_deg),
+                show_figure(rounding_least),
+                room * 100.0,
+                show_figure(rounding_least / room),
+            ),
+        });
+    }
+    Ok((linear, angular))
 }
 
 /// The X at which the ring is clear of the work all round.

@@ -123,6 +123,23 @@ pub struct Profile {
     /// Parameter at the start of each piece, plus the total length at the end.
     offsets: Vec<f64>,
     period: f64,
+    /// For a spline through rounded points, how much the rounding alone can bend it.
+    rounding: Option<Rounding>,
+}
+
+/// How much the rounding of sampled points (to the decimals they are written to) can bend the
+/// spline through them: a spline's second derivatives follow the points' second differences
+/// divided by the squared spacing, so points packed closer than their decimals resolve give a
+/// curve whose curvature is the rounding's, not the groove's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rounding {
+    /// Bound on the change of the spline's second derivative (its curvature in the transverse
+    /// plane) that the rounding can make, 1/mm.
+    pub bend: f64,
+    /// The spacing of the points where that bound is reached, mm.
+    pub spacing: f64,
+    /// How far those points can lie from their unrounded places, mm.
+    pub err: f64,
 }
 
 /// A concave stretch the insert nose cannot follow (its radius is below the nose radius).
@@ -147,7 +164,27 @@ impl Profile {
             pieces,
             offsets,
             period,
+            rounding: None,
         }
+    }
+
+    /// For a profile fitted through rounded points, how much the rounding can bend it (`None`
+    /// for exact pieces and exact points).
+    pub fn rounding(&self) -> Option<Rounding> {
+        self.rounding
+    }
+
+    /// The radius the rounding of the points alone can bend the helical surface to, across the
+    /// groove (the direction [`Profile::concave_stretches`] judges), for lead parameter `p`:
+    /// `None` when the points are exact.
+    ///
+    /// A change δ of the transverse curve's second derivative changes the surface's normal
+    /// curvature across the groove by at most `δ·(ρ² + p²)/p²`: the cross direction's first
+    /// fundamental form is at least `p²/(ρ² + p²)` of the tangent's (see `cross_curvature`).
+    pub fn rounding_radius(&self, p: f64) -> Option<f64> {
+        let (_, rho_max) = self.radius_range();
+        self.rounding
+            .map(|r| 1.0 / (r.bend * (rho_max * rho_max + p * p) / (p * p)))
     }
 
     /// A profile from the axial pieces of one period (ordered by increasing z), for lead
@@ -244,9 +281,8 @@ impl Profile {
     /// infinite from `θ ≥ π` on, where the nose cannot enter at all.
     pub fn concave_stretches(&self, p: f64, nose: f64) -> Vec<ConcaveStretch> {
         let mut found = Vec::new();
-        let mut current: Option<(ConcaveStretch, f64)> = None; // stretch, turning angle
-        let samples = 4000;
-        let du = self.length() / samples as f64;
+        // Stretch, turning angle.
+        let mut current: Option<(ConcaveStretch, f64)> = None;
         let mut close = |current: &mut Option<(ConcaveStretch, f64)>| {
             if let Some((mut stretch, turn)) = current.take() {
                 stretch.depth_left = if turn >= PI {
@@ -257,8 +293,7 @@ impl Profile {
                 found.push(stretch);
             }
         };
-        for i in 0..samples {
-            let u = (i as f64 + 0.5) * du;
+        for (u, du) in self.sample_cells() {
             let (i_piece, _) = self.locate(u);
             let (kappa, width) = match &self.pieces[i_piece] {
                 Piece::Corner { .. } => (-1.0, 0.0), // convex: never concave
@@ -311,6 +346,32 @@ impl Profile {
             }
         }
         found
+    }
+
+    /// The cells the concave check samples, as (middle, width), in order: 4000 equal cells over
+    /// the period, split further at the knots and mid-spans of spline pieces. Every knot span
+    /// (a separate cubic) thus has two samples of its own however dense or uneven the points,
+    /// so no stretch of a dense spline hides between samples and none has its turning summed
+    /// from too few.
+    fn sample_cells(&self) -> Vec<(f64, f64)> {
+        const GRID: usize = 4000;
+        let length = self.length();
+        let mut cuts: Vec<f64> = (0..=GRID)
+            .map(|k| length * k as f64 / GRID as f64)
+            .collect();
+        for (piece, offset) in self.pieces.iter().zip(&self.offsets) {
+            if let Piece::Spline(spline) = piece {
+                for span in spline.knots().windows(2) {
+                    cuts.push(offset + span[0]);
+                    cuts.push(offset + (span[0] + span[1]) / 2.0);
+                }
+            }
+        }
+        cuts.sort_by(f64::total_cmp);
+        cuts.windows(2)
+            .filter(|w| w[1] > w[0])
+            .map(|w| ((w[0] + w[1]) / 2.0, w[1] - w[0]))
+            .collect()
     }
 
     fn normal3(&self, pos: DVec2, tangent: DVec2, p: f64) -> DVec3 {
@@ -424,5 +485,41 @@ mod tests {
         // close to the axial one, so the radius is close to 3, and a bigger nose cannot enter.
         assert!((found[0].min_radius - 3.0).abs() < 0.2, "{found:?}");
         assert!(found[0].depth_left > 0.0);
+    }
+
+    #[test]
+    fn the_concave_check_samples_every_knot_span_of_a_dense_uneven_spline() {
+        // A circle of radius 30 over half a turn: 50 points, and 20 000 more packed into 0.1°
+        // (0.05 mm of arc, knot spans of 2.6 nm, against cells of 4000 over 94 mm: 23 µm).
+        let mut phis: Vec<f64> = (0..50).map(|k| PI * k as f64 / 50.0).collect();
+        phis.extend((1..=20_000).map(|k| 0.1f64.to_radians() * k as f64 / 20_001.0 + 0.5));
+        phis.sort_by(f64::total_cmp);
+        let rows: Vec<points::Row> = phis
+            .iter()
+            .enumerate()
+            .map(|(i, phi)| points::Row {
+                line: i + 1,
+                a: 30.0 * phi.cos(),
+                b: 30.0 * phi.sin(),
+            })
+            .collect();
+        let prof = points::profile(&rows, points::Section::Transverse, false, 10.0, 2).unwrap();
+        let Piece::Spline(spline) = &prof.pieces[0] else {
+            panic!("a profile from points is one spline");
+        };
+        let cells = prof.sample_cells();
+        let total: f64 = cells.iter().map(|&(_, width)| width).sum();
+        assert!(
+            (total - prof.length()).abs() < 1e-9,
+            "the cells cover the period"
+        );
+        let mut middles = cells.iter().map(|&(u, _)| u).peekable();
+        for span in spline.knots().windows(2) {
+            let mut inside = 0;
+            while middles.next_if(|&u| u < span[1]).is_some() {
+                inside += 1;
+            }
+            assert!(inside >= 2, "{inside} samples in the knot span {span:?}");
+        }
     }
 }

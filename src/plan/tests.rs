@@ -1,0 +1,265 @@
+//! The planner's refusals of an absurd Δ and of concave stretches, and planning a dense
+//! profile.
+
+use super::*;
+use crate::geometry::profile::points::{self, Row, Section};
+use std::f64::consts::PI;
+use std::path::Path;
+
+fn example(name: &str) -> Job {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples")
+        .join(name)
+        .join("job.toml");
+    Job::load(&path).expect("example job")
+}
+
+fn machine(name: &str) -> MachineProfile {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("machine-profiles")
+        .join(format!("{name}.toml"));
+    MachineProfile::load(&path).expect("machine profile")
+}
+
+/// The double-start example (radii 26 to 34 mm, lead 60 mm) with Δ = `delta`, bypassing the
+/// job file's checks as a program building its own job could.
+fn double_start(delta: f64) -> Job {
+    let mut job = example("double-start");
+    job.cut.delta = delta;
+    job
+}
+
+#[test]
+fn a_delta_finer_than_the_post_can_write_is_refused_at_once_naming_the_bound() {
+    // The post writes at most 6 decimals and keeps each axis's rounding below Δ/60, so on a
+    // controller with 64-bit positions nothing finer than 60 × 0.5·10⁻⁶ = 0.00003 mm can be
+    // planned. (Δ = 10⁻¹² used to be refused by the number format after the whole table: half
+    // a minute and 1.27 GB.)
+    let linuxcnc = machine("linuxcnc-lathe");
+    for delta in [1e-12, 1e-6, 2.9e-5] {
+        let e = plan(&double_start(delta), &linuxcnc).unwrap_err();
+        let PlanError::Delta { value, bound, .. } = &e else {
+            panic!("Δ = {delta}: expected the Δ refusal, got {e}");
+        };
+        assert_eq!(*value, delta);
+        assert!((bound - 3e-5).abs() < 1e-12, "{e}");
+        let text = e.to_string();
+        assert!(
+            text.contains("cut.delta") && text.contains("0.00003 mm"),
+            "{text}"
+        );
+    }
+    assert!(
+        plan(&double_start(1e-12), &linuxcnc)
+            .unwrap_err()
+            .to_string()
+            .contains("cut.delta = 1e-12 mm"),
+        "the value as written"
+    );
+    // Just above it the post can write the numbers: whatever refuses it, it is not Δ's size.
+    let e = plan(&double_start(3.1e-5), &linuxcnc).unwrap_err();
+    assert!(!matches!(e, PlanError::Delta { .. }), "{e}");
+    // And a sane Δ plans, within it.
+    let planned = plan(&double_start(0.005), &linuxcnc).unwrap();
+    assert!(planned.report.max_error_mm <= 0.005);
+}
+
+#[test]
+fn a_delta_finer_than_a_32_bit_controller_holds_is_refused_at_once() {
+    // The simulator holds positions as 32-bit floats: over this 24 mm groove at 0.1 mm a turn
+    // C reaches at least 88 200°, held to ±0.0039° (0.00065 mm at 9.5 mm a radian), which
+    // alone leaves interpolation less than 20 % of Δ = 0.0001 mm.
+    let sim = MachineProfile::builtin_sim().unwrap();
+    let e = plan(&double_start(1e-4), &sim).unwrap_err();
+    let PlanError::Delta { bound, .. } = &e else {
+        panic!("expected the Δ refusal, got {e}");
+    };
+    assert!(*bound > 1e-4 && *bound < 1e-3, "{e}");
+    let text = e.to_string();
+    assert!(
+        text.contains("cut.delta = 0.0001 mm") && text.contains("88200°"),
+        "{text}"
+    );
+    // The same Δ on a controller with 64-bit positions is not refused for its size.
+    let e = plan(&double_start(1e-4), &machine("linuxcnc-lathe"));
+    assert!(!matches!(e, Err(PlanError::Delta { .. })), "{e:?}");
+}
+
+#[test]
+fn a_delta_beyond_the_groove_depth_is_refused_at_once() {
+    // Radii from 26 to 34 mm: an allowable error above 8 mm bounds nothing. Δ = 10³⁰⁸ used to
+    // plan, reporting "max error 5e306 mm" on a title line no controller could receive.
+    let sim = MachineProfile::builtin_sim().unwrap();
+    for delta in [1e308, 8.5] {
+        let e = plan(&double_start(delta), &sim).unwrap_err();
+        let PlanError::Delta { bound, .. } = &e else {
+            panic!("Δ = {delta}: expected the Δ refusal, got {e}");
+        };
+        assert!((bound - 8.0).abs() < 1e-3, "{e}");
+        let text = e.to_string();
+        assert!(
+            text.contains("cut.delta") && text.contains("depth"),
+            "{text}"
+        );
+        assert!(text.len() < 300, "{text}");
+    }
+    let planned = plan(&double_start(7.9), &sim).unwrap();
+    assert!(planned.report.max_error_mm <= 7.9);
+}
+
+#[test]
+fn a_million_point_profile_plans_within_its_bound() {
+    // ρ = 30 − 4·cos 2φ over one period of the double-start groove, a million points 0.1 µm
+    // apart, exact and written to 10 decimals (the outlier check used to take hours over
+    // these: it rebuilt a spline through all points for every zig-zag).
+    let n = 1_000_000;
+    for decimals in [None, Some(10)] {
+        let rows: Vec<Row> = (0..n)
+            .map(|k| {
+                let phi = PI * k as f64 / n as f64;
+                let rho = 30.0 - 4.0 * (2.0 * phi).cos();
+                let written = |v: f64| match decimals {
+                    Some(d) => format!("{v:.d$}").parse::<f64>().unwrap(),
+                    None => v,
+                };
+                Row {
+                    line: k + 2,
+                    a: written(rho * phi.cos()),
+                    b: written(rho * phi.sin()),
+                }
+            })
+            .collect();
+        let mut job = example("double-start");
+        job.profile = points::profile(&rows, Section::Transverse, false, job.p(), 2)
+            .unwrap_or_else(|e| panic!("{decimals:?}: {e}"));
+        let planned = plan(&job, &MachineProfile::builtin_sim().unwrap())
+            .unwrap_or_else(|e| panic!("{decimals:?}: {e}"));
+        let report = &planned.report;
+        assert!(report.segments > 0);
+        assert!(
+            report.max_error_mm <= job.cut.delta,
+            "{decimals:?}: bound {} beyond Δ",
+            report.max_error_mm
+        );
+    }
+}
+
+/// `n` points over half a period of the double-start groove, ρ = 30 − 4·cos 2φ for
+/// 0 ≤ φ ≤ 90°, written to `decimals`.
+fn half_period(n: usize, decimals: usize) -> Vec<Row> {
+    (0..n)
+        .map(|k| {
+            let phi = PI / 2.0 * k as f64 / (n - 1) as f64;
+            let rho = 30.0 - 4.0 * (2.0 * phi).cos();
+            let written = |v: f64| format!("{v:.decimals$}").parse::<f64>().unwrap();
+            Row {
+                line: k + 2,
+                a: written(rho * phi.cos()),
+                b: written(rho * phi.sin()),
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn kinks_the_points_rounding_explains_are_refused_naming_the_rounding() {
+    // 20 000 points 2.5 µm apart at 4 decimals: rounding moves them by up to 0.07 µm, and the
+    // spline through them follows the rounding with curvatures far beyond the groove's own.
+    let sim = MachineProfile::builtin_sim().unwrap();
+    let mut job = example("double-start");
+    let rows = half_period(20_000, 4);
+    job.profile = points::profile(&rows, Section::Transverse, true, job.p(), 2).unwrap();
+    let e = plan(&job, &sim).unwrap_err();
+    let PlanError::Concave {
+        stretches,
+        nose,
+        rounding,
+        ..
+    } = &e
+    else {
+        panic!("expected concave stretches, got {e}");
+    };
+    let (radius, how) = rounding.expect("the rounding named");
+    assert!(radius < *nose);
+    // Half the 4th decimal in x and y, and for mirrored points up to twice the turn that puts
+    // on the mirror line through the crest point (ρ = 34 mm): at most three times as much.
+    let half_unit = 0.00005f64.hypot(0.00005);
+    assert!(
+        how.err >= half_unit && how.err <= 3.0 * half_unit,
+        "{how:?}"
+    );
+    let text = e.to_string();
+    assert!(text.contains("more decimals, or fewer of them"), "{text}");
+    assert!(!text.contains("smaller nose"), "{text}");
+    // Thousands of them: the ten deepest are listed, and how many there are.
+    assert!(stretches.len() > 10);
+    let listed: Vec<&str> = text.lines().filter(|l| l.starts_with("  at (")).collect();
+    assert_eq!(listed.len(), 10, "{text}");
+    assert!(
+        text.contains(&format!("({} in all)", stretches.len())),
+        "{text}"
+    );
+    let deepest = stretches
+        .iter()
+        .max_by(|a, b| a.depth_left.total_cmp(&b.depth_left))
+        .unwrap();
+    let at = format!("  at ({:.4}, {:.4})", deepest.at.x, deepest.at.y);
+    assert!(listed.iter().any(|l| l.starts_with(&at)), "{at} in {text}");
+    // Written to 8 decimals (±0.007 nm) the same points plan.
+    job.profile = points::profile(
+        &half_period(20_000, 8),
+        Section::Transverse,
+        true,
+        job.p(),
+        2,
+    )
+    .unwrap();
+    assert!(plan(&job, &sim).is_ok());
+}
+
+#[test]
+fn kinks_too_shallow_to_matter_are_counted_not_refused() {
+    // The same 20 000 points at 6 decimals: the spline still kinks tighter than the nose where
+    // the rounding zig-zags, but those kinks leave nanometres, far below Δ/100. They plan, and
+    // what they leave is part of the bound.
+    let sim = MachineProfile::builtin_sim().unwrap();
+    let mut job = example("double-start");
+    let rows = half_period(20_000, 6);
+    job.profile = points::profile(&rows, Section::Transverse, true, job.p(), 2).unwrap();
+    let stretches = job.profile.concave_stretches(job.p(), job.tool.nose_radius);
+    assert!(!stretches.is_empty(), "kinks tighter than the nose");
+    let deepest = stretches.iter().map(|c| c.depth_left).fold(0.0, f64::max);
+    assert!(deepest > 0.0 && deepest <= CONCAVE_SHARE * job.cut.delta);
+    let report = plan(&job, &sim).unwrap().report;
+    assert_eq!(report.concave_mm, deepest);
+    let parts = report.interp_error_mm
+        + TABLE_SHARE * report.delta_mm
+        + report.scallop_mm
+        + report.cusp_mm
+        + report.blend_mm
+        + report.rounding_mm
+        + report.concave_mm;
+    assert_eq!(report.max_error_mm, parts);
+    assert!(report.max_error_mm <= report.delta_mm);
+    // An exact profile has none to count.
+    assert_eq!(
+        plan(&example("double-start"), &sim)
+            .unwrap()
+            .report
+            .concave_mm,
+        0.0
+    );
+}
+
+#[test]
+fn a_groove_tighter_than_the_nose_is_refused_with_the_tool_to_change() {
+    // The ball groove's radius is 3.429 mm; its exact profile has no rounding to blame.
+    let mut job = example("ball-screw");
+    job.tool.nose_radius = 4.0;
+    let e = plan(&job, &MachineProfile::builtin_sim().unwrap()).unwrap_err();
+    assert!(
+        matches!(&e, PlanError::Concave { rounding: None, .. }),
+        "{e}"
+    );
+    assert!(e.to_string().contains("use a smaller nose radius"), "{e}");
+}
