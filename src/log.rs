@@ -103,6 +103,17 @@ pub enum Event {
         #[serde(skip_serializing_if = "Option::is_none", default)]
         reason: Option<String>,
     },
+    /// Where a run that did not complete resumes (beside its End: just before it on a
+    /// serial line, just after it on the fieldbus transports): the first program line
+    /// (1-based) not known to have executed, and the last one that may have.
+    ResumeAt {
+        /// The line to resume at (`whirl stream --resume-at`).
+        line: usize,
+        /// Lines from `line` up to this one may already have run (a resume re-enters along
+        /// the groove, so running them again is harmless); `None` if none did.
+        #[serde(skip_serializing_if = "Option::is_none", default)]
+        possibly_run_to: Option<usize>,
+    },
 }
 
 /// An event with its time.
@@ -415,6 +426,9 @@ pub struct RunSummary {
     /// Why it stopped, if its End event says.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reason: Option<String>,
+    /// Where it resumes (1-based program line), if it logged one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub resume_at: Option<usize>,
 }
 
 /// How a run ended.
@@ -511,6 +525,7 @@ impl Tally {
                 executed_twice: Vec::new(),
                 ended: Ended::Interrupted,
                 reason: None,
+                resume_at: None,
             },
             seen: BTreeMap::new(),
             first_t: first.t,
@@ -542,6 +557,7 @@ impl Tally {
                 };
                 run.reason.clone_from(reason);
             }
+            Event::ResumeAt { line, .. } => run.resume_at = Some(*line),
             Event::Start { .. } | Event::Status { .. } | Event::Message { .. } => {}
         }
     }

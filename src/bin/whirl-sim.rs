@@ -7,10 +7,14 @@
 
 use anyhow::{Context, Result};
 use clap::Parser;
+use std::ffi::OsStr;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::process::ExitCode;
 use std::time::Duration;
+use tokio::signal::unix::{signal, Signal, SignalKind};
 use tokio_serial::SerialPort;
+use whirl::config::connection::{MAX_CYCLE_US, MIN_CYCLE_US};
 use whirl::config::machine::MachineProfile;
 use whirl::judge::guard::DeltaGuard;
 use whirl_sim::serve::{serve, ServeOptions};
@@ -23,7 +27,9 @@ use whirl_sim::{Controller, ControllerOptions};
     about = "A simulated grblHAL whirling-lathe controller"
 )]
 struct Cli {
-    /// Serve on a new pseudo-terminal; PATH becomes a symlink to its device.
+    /// Serve on a new pseudo-terminal; PATH becomes a symlink to its device, removed when
+    /// whirl-sim stops. Nothing may be at PATH but such a link an earlier whirl-sim left
+    /// behind (a symlink to a /dev/pts/N since closed), which is replaced.
     #[arg(long, conflicts_with = "tcp")]
     pty: Option<PathBuf>,
     /// Serve one connection on this TCP address (loopback unless you say otherwise).
@@ -33,33 +39,34 @@ struct Cli {
     #[arg(long, conflicts_with_all = ["pty", "tcp"])]
     modbus_tcp: Option<String>,
     /// Serve the Modbus register map as an RTU server on a new pseudo-terminal; PATH becomes
-    /// a symlink to its device.
+    /// a symlink to its device, as with --pty.
     #[arg(long, conflicts_with_all = ["pty", "tcp", "modbus_tcp"])]
     modbus_rtu: Option<PathBuf>,
     /// Serve three CiA 402 drives (X, Z, C on CANopen nodes 1, 2, 3) behind an slcan
     /// adapter on a new pseudo-terminal instead of a controller; PATH becomes a symlink to
-    /// its device.
+    /// its device, as with --pty.
     #[arg(long, conflicts_with_all = ["pty", "tcp", "modbus_tcp", "modbus_rtu"])]
     can_slcan: Option<PathBuf>,
     /// The CAN drives' counts per mm of X and Z and per degree of C; default: the machine
-    /// profile's `[connection.drives]`, else 10000,10000,10000.
-    #[arg(long, value_name = "X,Z,C", value_parser = counts)]
+    /// profile's `[connection.drives]`, else 10000,10000,10000. Each above 0, at most 1e9.
+    #[arg(long, allow_hyphen_values = true, value_name = "X,Z,C", value_parser = counts)]
     can_counts: Option<[f64; 3]>,
     /// The CAN master's SYNC period, µs: each drive moves at most its axis's max rate for
-    /// this long a cycle; default: the profile's `cycle_us`, else 4000.
-    #[arg(long)]
+    /// this long a cycle, 250 to 100000 (as a profile's); default: the profile's
+    /// `cycle_us`, else 4000.
+    #[arg(long, allow_hyphen_values = true, value_parser = cycle_us)]
     can_cycle_us: Option<u64>,
     /// Machine profile (TOML); default: machine-profiles/sim.toml, built in.
     #[arg(long)]
     machine: Option<PathBuf>,
-    /// Simulated seconds per wall second; 0: as fast as the host allows.
-    #[arg(long, default_value_t = 1.0)]
+    /// Simulated seconds per wall second, 0.001 to 10000; 0: as fast as the host allows.
+    #[arg(long, allow_hyphen_values = true, default_value_t = 1.0, value_parser = time_scale)]
     time_scale: f64,
-    /// Emulated link rate, bits per second.
-    #[arg(long)]
+    /// Emulated link rate, bits per second, 300 to 10000000; default: unlimited.
+    #[arg(long, allow_hyphen_values = true, value_parser = baud)]
     baud: Option<u32>,
-    /// Receive buffer size in bytes (grblHAL 1024; 128 like an AVR grbl).
-    #[arg(long, default_value_t = 1024)]
+    /// Receive buffer size in bytes (grblHAL 1024; 128 like an AVR grbl), 128 to 65536.
+    #[arg(long, allow_hyphen_values = true, default_value_t = 1024, value_parser = rx)]
     rx: usize,
     /// The job whose groove the machine cuts: the Δ guard measures the executed motion
     /// against it and raises ALARM:64 as soon as the profile error exceeds Δ.
@@ -69,23 +76,85 @@ struct Cli {
     /// lines.
     #[arg(long)]
     log: Option<PathBuf>,
-    /// Stop after this many seconds without a byte from the client (0: never).
-    #[arg(long, default_value_t = 600.0)]
+    /// Stop after this many seconds without a byte from the client, up to 604800 (a week);
+    /// 0: never.
+    #[arg(long, allow_hyphen_values = true, default_value_t = 600.0, value_parser = idle_exit)]
     idle_exit: f64,
 }
 
 #[tokio::main(flavor = "current_thread")]
-async fn main() -> std::process::ExitCode {
-    match run(Cli::parse()).await {
-        Ok(()) => std::process::ExitCode::SUCCESS,
+async fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let mut stop = match Stop::listen() {
+        Ok(stop) => stop,
         Err(e) => {
-            eprintln!("error: {e:#}");
-            std::process::ExitCode::FAILURE
+            note(format_args!("error: cannot listen for signals: {e}"));
+            return ExitCode::FAILURE;
+        }
+    };
+    // A signal drops `run` where it waits, and with it the terminal's link, which removes
+    // itself (see `PtyLink`).
+    tokio::select! {
+        result = run(cli) => match result {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                note(format_args!("error: {e:#}"));
+                ExitCode::FAILURE
+            }
+        },
+        (name, code) = stop.first() => {
+            note(format_args!("whirl-sim: stopped by {name}"));
+            ExitCode::from(code)
         }
     }
 }
 
+/// The signals that stop whirl-sim from outside: Ctrl-C (SIGINT), `kill` (SIGTERM), its
+/// terminal closed (SIGHUP). Listened for before anything starts, so that whirl-sim stops by
+/// returning, cleaning up as it goes, rather than dying where it stands.
+struct Stop {
+    interrupt: Signal,
+    terminate: Signal,
+    hangup: Signal,
+}
+
+impl Stop {
+    fn listen() -> std::io::Result<Stop> {
+        Ok(Stop {
+            interrupt: signal(SignalKind::interrupt())?,
+            terminate: signal(SignalKind::terminate())?,
+            hangup: signal(SignalKind::hangup())?,
+        })
+    }
+
+    /// The first of them to come: its name, and the exit code a shell gives a command that
+    /// signal ended, 128 + its number.
+    async fn first(&mut self) -> (&'static str, u8) {
+        tokio::select! {
+            _ = self.interrupt.recv() => ("SIGINT", 128 + 2),
+            _ = self.terminate.recv() => ("SIGTERM", 128 + 15),
+            _ = self.hangup.recv() => ("SIGHUP", 128 + 1),
+        }
+    }
+}
+
+/// A line on standard error; if standard error cannot take it (a closed pipe), there is
+/// nowhere left to say so, and serving goes on.
+fn note(line: std::fmt::Arguments) {
+    let _ = writeln!(std::io::stderr(), "{line}");
+}
+
 async fn run(cli: Cli) -> Result<()> {
+    // A path that cannot take the terminal's link is refused before anything starts.
+    for (option, path) in [
+        ("--pty", &cli.pty),
+        ("--modbus-rtu", &cli.modbus_rtu),
+        ("--can-slcan", &cli.can_slcan),
+    ] {
+        if let Some(path) = path {
+            earlier_link(option, path)?;
+        }
+    }
     let profile = match &cli.machine {
         Some(p) => MachineProfile::load(p)?,
         None => MachineProfile::builtin_sim()?,
@@ -133,17 +202,20 @@ async fn run(cli: Cli) -> Result<()> {
             let listener = tokio::net::TcpListener::bind(addr)
                 .await
                 .with_context(|| format!("cannot listen on {addr}"))?;
-            eprintln!("whirl-sim: serving Modbus on {}", listener.local_addr()?);
+            note(format_args!(
+                "whirl-sim: serving Modbus on {}",
+                listener.local_addr()?
+            ));
             serve_tcp(listener, bank, clock, log).await?;
         } else if let Some(link) = &cli.modbus_rtu {
-            let (master, _slave) = pty_at(link)?;
+            let (master, _slave, _link) = pty_at("--modbus-rtu", link)?;
             serve_rtu(master, bank, clock, log).await?;
         }
     } else if let Some(link) = &cli.pty {
         // A board on a USB serial port booted long before the host opened it: the host
         // never sees its power-up banner, so none is left waiting in the terminal (a soft
         // reset shows one).
-        let (master, _slave) = pty_at(link)?;
+        let (master, _slave, _link) = pty_at("--pty", link)?;
         controller.take_output();
         serve(master, &mut controller, serve_options, log).await?;
     } else {
@@ -151,7 +223,10 @@ async fn run(cli: Cli) -> Result<()> {
         let listener = tokio::net::TcpListener::bind(addr)
             .await
             .with_context(|| format!("cannot listen on {addr}"))?;
-        eprintln!("whirl-sim: serving on {}", listener.local_addr()?);
+        note(format_args!(
+            "whirl-sim: serving on {}",
+            listener.local_addr()?
+        ));
         let (socket, _) = listener.accept().await?;
         serve(socket, &mut controller, serve_options, log).await?;
     }
@@ -186,7 +261,6 @@ async fn serve_can(
         .can_cycle_us
         .or(drives.map(|d| u64::from(d.cycle_us)))
         .unwrap_or(4000);
-    anyhow::ensure!(cycle_us > 0, "--can-cycle-us must be above 0");
     let period = Duration::from_micros(cycle_us);
     let counts = cli
         .can_counts
@@ -205,21 +279,94 @@ async fn serve_can(
         idle_exit,
         ..ServeOptions::default()
     };
-    let (master, _slave) = pty_at(link)?;
+    let (master, _slave, _link) = pty_at("--can-slcan", link)?;
     let bus = std::sync::Arc::new(std::sync::Mutex::new(bus));
     serve_slcan(master, bus, options, |e| log.record(e)).await?;
     Ok(())
 }
 
-/// `--can-counts`: three numbers, X, Z, C, separated by commas. Whether they make sense
-/// as scales is the bus's to say.
+/// `--can-counts`: three numbers, X, Z, C, separated by commas, each finite, above 0 and at
+/// most 10⁹. Whether they make sense as the machine's scales is the bus's to say.
 fn counts(text: &str) -> Result<[f64; 3], String> {
     let values = text
         .split(',')
-        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("{v:?}: {e}")))
+        .map(|v| {
+            let count = v.trim().parse::<f64>().map_err(|e| format!("{v:?}: {e}"))?;
+            if count.is_finite() && count > 0.0 && count <= 1e9 {
+                Ok(count)
+            } else {
+                Err(format!("{v:?}: each count must be above 0 and at most 1e9"))
+            }
+        })
         .collect::<Result<Vec<f64>, String>>()?;
     <[f64; 3]>::try_from(values)
         .map_err(|values| format!("three counts, X,Z,C; got {}", values.len()))
+}
+
+// The other numbers: each checked here, so that clap refuses a wrong one naming the option,
+// before anything starts.
+
+/// A number, which may still be NaN or infinite: each caller's range refuses those.
+fn number(text: &str) -> Result<f64, String> {
+    text.trim()
+        .parse()
+        .map_err(|_| format!("{text:?} is not a number"))
+}
+
+/// A whole number from `low` to `high`, `what` (" bytes") saying what it counts.
+fn whole_in<T>(text: &str, low: T, high: T, what: &str) -> Result<T, String>
+where
+    T: std::str::FromStr + PartialOrd + std::fmt::Display,
+{
+    let value: T = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("{text:?} is not a whole number"))?;
+    if value >= low && value <= high {
+        Ok(value)
+    } else {
+        Err(format!("must be a whole number from {low} to {high}{what}"))
+    }
+}
+
+/// `--time-scale`: simulated seconds per wall second, 0.001 to 10000; 0: as fast as the
+/// host allows.
+fn time_scale(text: &str) -> Result<f64, String> {
+    let scale = number(text)?;
+    if scale == 0.0 || (1e-3..=1e4).contains(&scale) {
+        Ok(scale)
+    } else {
+        Err(
+            "must be 0 (as fast as the host allows) or a number from 0.001 to 10000 simulated \
+             seconds per wall second"
+                .into(),
+        )
+    }
+}
+
+/// `--idle-exit`: seconds, up to a week; 0: never.
+fn idle_exit(text: &str) -> Result<f64, String> {
+    let seconds = number(text)?;
+    if (0.0..=604_800.0).contains(&seconds) {
+        Ok(seconds)
+    } else {
+        Err("must be 0 (never) or a number of seconds up to 604800 (a week)".into())
+    }
+}
+
+/// `--baud`: bits per second, 300 to 10 000 000.
+fn baud(text: &str) -> Result<u32, String> {
+    whole_in(text, 300, 10_000_000, " bits per second")
+}
+
+/// `--rx`: the receive buffer, 128 (grbl on an AVR) to 65536 bytes.
+fn rx(text: &str) -> Result<usize, String> {
+    whole_in(text, 128, 65_536, " bytes")
+}
+
+/// `--can-cycle-us`: the SYNC period, in the range a machine profile's `cycle_us` takes.
+fn cycle_us(text: &str) -> Result<u64, String> {
+    whole_in(text, MIN_CYCLE_US.into(), MAX_CYCLE_US.into(), " µs")
 }
 
 /// The simulator's log (`--log`): every event of whichever front-end serves, as JSON lines.
@@ -244,11 +391,24 @@ impl EventLog {
     }
 
     /// One line per event, written whole and unbuffered: a crash loses at most the last
-    /// one.
+    /// one. Each carries the wall clock (`wall_s`, seconds since the Unix epoch) beside the
+    /// simulated time, so what the machine did can be set against what happened outside it
+    /// (a signal to the bridge, an operator's button).
     fn record(&mut self, e: &(impl serde::Serialize + std::fmt::Debug)) {
+        /// An event with the wall clock.
+        #[derive(serde::Serialize)]
+        struct Stamped<'a, E> {
+            wall_s: f64,
+            #[serde(flatten)]
+            event: &'a E,
+        }
         tracing::debug!(?e);
         if let Some(file) = self.file.as_mut() {
-            let mut line = serde_json::to_string(e).expect("simulator events serialise");
+            let wall_s = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0.0, |d| d.as_secs_f64());
+            let stamped = Stamped { wall_s, event: e };
+            let mut line = serde_json::to_string(&stamped).expect("simulator events serialise");
             line.push('\n');
             if let Err(error) = file.write_all(line.as_bytes()) {
                 tracing::error!(%error, "cannot write the simulator log");
@@ -257,22 +417,113 @@ impl EventLog {
     }
 }
 
-/// A new pseudo-terminal with a symlink to its device at `link`: the master end to serve,
-/// and the slave end, which the caller keeps open so the terminal lives while clients come
-/// and go.
+/// Whether `target` is a pseudo-terminal's device, `/dev/pts/N`: what whirl-sim links to.
+fn is_pts(target: &Path) -> bool {
+    target
+        .strip_prefix("/dev/pts")
+        .ok()
+        .and_then(|n| n.to_str())
+        .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+}
+
+/// What is at `link`, given with `option`, if whirl-sim may put its terminal's link there:
+/// `None`, nothing; `Some(target)`, a link an earlier whirl-sim left behind, to replace: a
+/// symlink to a `/dev/pts/N` that no longer exists (whirl-sim removes its link when it
+/// stops, but one killed outright cannot). Anything else is refused, and left alone: a file,
+/// a directory, any other link, and a link to a terminal still open, which may be another
+/// whirl-sim's, serving.
+fn earlier_link(option: &str, link: &Path) -> Result<Option<PathBuf>> {
+    let meta = match std::fs::symlink_metadata(link) {
+        Ok(meta) => meta,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => {
+            return Err(e).with_context(|| format!("cannot look at {} ({option})", link.display()))
+        }
+    };
+    let what = if meta.file_type().is_symlink() {
+        let target = std::fs::read_link(link)
+            .with_context(|| format!("cannot read the link {} ({option})", link.display()))?;
+        if !is_pts(&target) {
+            format!("a symbolic link to {}", target.display())
+        } else if std::fs::symlink_metadata(&target).is_err() {
+            return Ok(Some(target));
+        } else {
+            format!(
+                "a link to {}, a terminal still open (another whirl-sim serving there?)",
+                target.display()
+            )
+        }
+    } else if meta.is_dir() {
+        "a directory".to_owned()
+    } else if meta.is_file() {
+        "a file".to_owned()
+    } else {
+        "a device or other special file".to_owned()
+    };
+    anyhow::bail!(
+        "refusing {option} {}: {what} is there, and whirl-sim replaces only a link of its own \
+         that an earlier run left behind, to a pseudo-terminal (/dev/pts/N) since closed; \
+         move it or choose another path",
+        link.display()
+    )
+}
+
+/// The link to a pseudo-terminal whirl-sim made: removed when dropped, that is whenever
+/// whirl-sim stops serving (idle, an error, a signal), if it still leads to
+/// the terminal it was made for.
+struct PtyLink {
+    /// Where the link is.
+    path: PathBuf,
+    /// The terminal's device it leads to.
+    device: PathBuf,
+}
+
+impl Drop for PtyLink {
+    fn drop(&mut self) {
+        if std::fs::read_link(&self.path).is_ok_and(|target| target == self.device) {
+            let _ = std::fs::remove_file(&self.path);
+        }
+    }
+}
+
+/// A new pseudo-terminal with a symlink to its device at `link` (given with `option`;
+/// refused, see [`earlier_link`], unless nothing or an earlier whirl-sim's link is there):
+/// the master end to serve; the slave end, which the caller keeps open so the terminal
+/// lives while clients come and go; and the link, removed when dropped.
 fn pty_at(
-    link: &std::path::Path,
-) -> Result<(tokio_serial::SerialStream, tokio_serial::SerialStream)> {
+    option: &str,
+    link: &Path,
+) -> Result<(
+    tokio_serial::SerialStream,
+    tokio_serial::SerialStream,
+    PtyLink,
+)> {
+    let earlier = earlier_link(option, link)?;
     let (master, slave) =
         tokio_serial::SerialStream::pair().context("cannot open a pseudo-terminal")?;
     let device = slave
         .name()
         .context("the pseudo-terminal has no device name")?;
-    let _ = std::fs::remove_file(link);
+    if let Some(target) = earlier {
+        std::fs::remove_file(link)
+            .with_context(|| format!("cannot replace {} ({option})", link.display()))?;
+        note(format_args!(
+            "whirl-sim: replacing {}, a link to {} left by an earlier whirl-sim",
+            link.display(),
+            target.display()
+        ));
+    }
     std::os::unix::fs::symlink(&device, link)
         .with_context(|| format!("cannot link {} to {device}", link.display()))?;
-    eprintln!("whirl-sim: serving on {} -> {device}", link.display());
-    Ok((master, slave))
+    note(format_args!(
+        "whirl-sim: serving on {} -> {device}",
+        link.display()
+    ));
+    let link = PtyLink {
+        path: link.to_owned(),
+        device: PathBuf::from(OsStr::new(&device)),
+    };
+    Ok((master, slave, link))
 }
 
 #[cfg(test)]
@@ -289,6 +540,56 @@ mod tests {
         assert_eq!(counts("1,2").unwrap_err(), "three counts, X,Z,C; got 2");
         assert_eq!(counts("1,2,3,4").unwrap_err(), "three counts, X,Z,C; got 4");
         assert_eq!(counts("1,x,3").unwrap_err(), "\"x\": invalid float literal");
+        for bad in ["0,1,1", "1,-1,1", "1,1,nan", "inf,1,1", "1,1,1e10"] {
+            let error = counts(bad).unwrap_err();
+            assert!(
+                error.ends_with("each count must be above 0 and at most 1e9"),
+                "{error}"
+            );
+        }
+    }
+
+    #[test]
+    fn numbers_are_refused_naming_the_option() {
+        let cases: [(&[&str], &str); 11] = [
+            (&["--time-scale", "nan"], "--time-scale"),
+            (&["--time-scale", "1e308"], "--time-scale"),
+            (&["--time-scale", "-1"], "--time-scale"),
+            (&["--baud", "0"], "--baud"),
+            (&["--rx", "0"], "--rx"),
+            (&["--rx", "100000"], "--rx"),
+            (&["--idle-exit", "nan"], "--idle-exit"),
+            (&["--idle-exit", "-1"], "--idle-exit"),
+            (&["--idle-exit", "1e30"], "--idle-exit"),
+            (&["--can-cycle-us", "0"], "--can-cycle-us"),
+            (&["--can-counts", "10000,0,10000"], "--can-counts"),
+        ];
+        for (args, option) in cases {
+            let mut argv = vec!["whirl-sim", "--pty", "link"];
+            argv.extend_from_slice(args);
+            let error = Cli::try_parse_from(argv).err().expect("refused");
+            assert_eq!(error.kind(), clap::error::ErrorKind::ValueValidation);
+            assert!(error.to_string().contains(option), "{error}");
+        }
+        // 0 has a meaning: as fast as the host allows; never stop.
+        let cli = Cli::try_parse_from(["whirl-sim", "--time-scale", "0", "--idle-exit", "0"]);
+        let cli = cli.unwrap();
+        assert_eq!((cli.time_scale, cli.idle_exit), (0.0, 0.0));
+    }
+
+    #[test]
+    fn only_a_link_to_a_pseudo_terminal_is_taken_for_an_earlier_whirl_sims() {
+        assert!(is_pts(Path::new("/dev/pts/3")));
+        for other in [
+            "/dev/pts",
+            "/dev/pts/",
+            "/dev/pts/x",
+            "/dev/null",
+            "pts/3",
+            "/tmp/a",
+        ] {
+            assert!(!is_pts(Path::new(other)), "{other}");
+        }
     }
 
     #[test]
@@ -313,14 +614,9 @@ mod tests {
             Cli::try_parse_from(argv).unwrap()
         };
         let mut log = EventLog::open(None).unwrap();
-        let cases = [
-            (&["--time-scale", "0"][..], "CAN needs a time scale above 0"),
-            (&["--can-cycle-us", "0"], "--can-cycle-us must be above 0"),
-            (
-                &["--can-counts", "10000,0,10000"],
-                "counts per unit of axis Z: 0 must be finite and above zero",
-            ),
-        ];
+        // (A cycle of 0 µs and counts of 0 are refused by the command line itself:
+        // `numbers_are_refused_naming_the_option`.)
+        let cases = [(&["--time-scale", "0"][..], "CAN needs a time scale above 0")];
         for (args, message) in cases {
             let cli = refused(args);
             let error = serve_can(&cli, &profile, None, &link, None, &mut log)

@@ -102,7 +102,7 @@ pub enum SegmentError {
 /// linked move or feed that rounds to zero.
 pub fn segments(program: &Program) -> Result<Vec<Segment>, SegmentError> {
     let mut out = Vec::with_capacity(program.moves.len() + 1);
-    for (index, action) in program.moves.iter().enumerate() {
+    for (index, action) in carried(program) {
         let refuse = |what: &'static str, reason: String| SegmentError::Move {
             index,
             what,
@@ -125,7 +125,7 @@ pub fn segments(program: &Program) -> Result<Vec<Segment>, SegmentError> {
             })
         };
         let segment = match *action {
-            Move::Comment(_) => continue,
+            Move::Comment(_) => unreachable!("comments are not carried"),
             Move::Rapid { x, z, c } => Segment::Rapid {
                 x: x.map(|v| linear("rapid", v)).transpose()?,
                 z: z.map(|v| linear("rapid", v)).transpose()?,
@@ -170,6 +170,27 @@ pub fn segments(program: &Program) -> Result<Vec<Segment>, SegmentError> {
     }
     out.push(Segment::ProgramEnd);
     Ok(out)
+}
+
+/// Which move of `program` each of [`segments`]'s segments comes from, in order: its index
+/// in [`Program::moves`], and for the [`Segment::ProgramEnd`] after the last,
+/// `program.moves.len()` (the program's end). A controller reports progress by segment
+/// (`EXECUTED_SEQ`); this says it in the program's moves, where a stopped run resumes.
+pub fn segment_moves(program: &Program) -> Vec<usize> {
+    carried(program)
+        .map(|(index, _)| index)
+        .chain([program.moves.len()])
+        .collect()
+}
+
+/// The moves that become segments, with their indices: all but comments, which nothing on
+/// the controller reads.
+fn carried(program: &Program) -> impl Iterator<Item = (usize, &Move)> {
+    program
+        .moves
+        .iter()
+        .enumerate()
+        .filter(|(_, action)| !matches!(action, Move::Comment(_)))
 }
 
 /// Millimetres as 0.1 µm, rounded to nearest, if finite and within i32.
@@ -276,6 +297,31 @@ mod tests {
                 Segment::ProgramEnd,
             ]
         );
+    }
+
+    #[test]
+    fn each_segment_names_the_move_it_comes_from() {
+        let program = Program {
+            moves: vec![
+                Move::Comment("lead-in".into()),
+                Move::SpindleOn { rpm: 2500.0 },
+                Move::Comment("cut".into()),
+                Move::Comment("still the cut".into()),
+                Move::Linked {
+                    x: 24.0,
+                    z: 0.5,
+                    c: 360.0,
+                    minutes: 0.01,
+                },
+                Move::SpindleOff,
+            ],
+        };
+        let moves = segment_moves(&program);
+        // One per segment: the comments carry none, and the program end is past the last
+        // move.
+        assert_eq!(moves.len(), segments(&program).unwrap().len());
+        assert_eq!(moves, vec![1, 4, 5, 6]);
+        assert_eq!(segment_moves(&Program { moves: vec![] }), vec![0]);
     }
 
     #[test]

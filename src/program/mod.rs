@@ -14,6 +14,7 @@
 //! - [`timing`]: how long each move takes, and the program's cycle time.
 
 pub mod limits;
+pub mod reentry;
 pub mod timing;
 
 use crate::config::machine::Axis;

@@ -31,6 +31,16 @@
 //! Every frame is sent as the session gives it; the log gets the session's events (boot-up,
 //! configuration, enable, spindle marks, emergencies, the stop and its reason), not the
 //! cycles, which the simulator's execution record logs as moves.
+//!
+//! # Ends
+//!
+//! A run that logged its start logs its end, whatever ends it, with the reason. The caller's
+//! stop ([`control::Command::Stop`]), like a log that can no longer be written, is the
+//! session's gentle stop ([`Session::stop_held`]): the path held to a stand, then the drives
+//! disabled; so is a stall, with the session's stall timeout set. A run that did not
+//! complete says where to resume
+//! ([`CanOutcome::resume_move`], from [`Session::resume_move`]); an error once the session
+//! ran carries it too ([`CanError::Interrupted`]).
 
 use super::control::{self, Commands};
 use super::progress::{Progress, ProgressFn, Unit};
@@ -120,8 +130,9 @@ pub struct CanOptions {
     pub program: String,
     /// Told how far the run is: about once a second of machine time, and at its end.
     pub on_progress: Option<ProgressFn>,
-    /// The caller's hold, resume and abort: the set-points slowed along the path to a
-    /// stand and brought back up to speed, or a quick stop.
+    /// The caller's hold, resume, stop and abort: the set-points slowed along the path to
+    /// a stand and brought back up to speed, the same stand then the drives disabled, or a
+    /// quick stop.
     pub commands: Option<Commands>,
 }
 
@@ -134,6 +145,13 @@ pub struct CanOutcome {
     pub stop: Option<StopReason>,
     /// Drives whose disabling was not confirmed after a stop.
     pub unconfirmed: Vec<NodeId>,
+    /// Where a run that did not complete resumes: the index in the program of the first
+    /// move the drives are not known to have run to its end ([`Session::resume_move`]);
+    /// `None` when completed.
+    pub resume_move: Option<usize>,
+    /// The program line (0-based) of `resume_move`, where [`crate::transport::stream`],
+    /// which knows the program's lines, filled it in.
+    pub resume_line: Option<usize>,
     /// Set-points sent.
     pub sent: usize,
     /// Set-points of the program.
@@ -215,9 +233,28 @@ pub enum CanError {
     /// A SYNC-locked clock needs the adapter's acknowledgements.
     #[error("a SYNC-locked clock needs an slcan adapter's acknowledgements; {0} has none")]
     Lockstep(String),
-    /// The executed-path log.
+    /// The executed-path log. Once the session ran, the drives were stopped (the gentle
+    /// stop, [`Session::stop_held`]) before the run ended with this.
     #[error(transparent)]
     Log(#[from] LogError),
+    /// Any of the above once the session had begun, with where to resume.
+    #[error("{error}")]
+    Interrupted {
+        /// What ended it.
+        error: Box<CanError>,
+        /// As [`CanOutcome::resume_move`].
+        resume_move: usize,
+    },
+}
+
+impl CanError {
+    /// Where to resume a run that failed after the session began.
+    pub fn resume_move(&self) -> Option<usize> {
+        match self {
+            CanError::Interrupted { resume_move, .. } => Some(*resume_move),
+            _ => None,
+        }
+    }
 }
 
 /// What came off the link.
@@ -522,6 +559,8 @@ pub async fn stream_can(
             completed: false,
             stop: None,
             unconfirmed: Vec::new(),
+            resume_move: None,
+            resume_line: None,
             sent: 0,
             setpoints: total,
             late_cycles: 0,
@@ -533,6 +572,7 @@ pub async fn stream_can(
         commands: 0,
         acks: 0,
         in_flight: VecDeque::new(),
+        log_failed: None,
         caller: options.commands.take(),
         progress: Told {
             started: Instant::now(),
@@ -545,6 +585,10 @@ pub async fn stream_can(
     let result = run
         .drive(&mut port, &name, &mut session, period, &options, log)
         .await;
+    let result = match (result, run.log_failed.take()) {
+        (Ok(()), Some(error)) => Err(CanError::Log(error)),
+        (result, _) => result,
+    };
     let reason = match &result {
         Ok(()) => run.outcome.stop.as_ref().map(ToString::to_string),
         Err(error) => Some(error.to_string()),
@@ -553,14 +597,26 @@ pub async fn stream_can(
     run.outcome.sent = session.progress().0;
     run.progress.tell(session.progress());
     run.outcome.session_time = run.clock.now();
-    log.write(
+    let resume_move = session.resume_move();
+    if !run.outcome.completed {
+        run.outcome.resume_move = Some(resume_move);
+    }
+    // After a failed write the End may not land either; the failure is what the caller
+    // hears.
+    let ended = log.write(
         run.clock.started.elapsed().as_secs_f64(),
         log::Event::End {
             completed: run.outcome.completed,
             reason,
         },
-    )?;
-    result.map(|()| run.outcome)
+    );
+    match result {
+        Ok(()) => ended.map(|()| run.outcome).map_err(CanError::from),
+        Err(error) => Err(CanError::Interrupted {
+            error: Box::new(error),
+            resume_move,
+        }),
+    }
 }
 
 /// A run in progress.
@@ -574,7 +630,10 @@ struct Run {
     /// commands sent up to its SYNC.
     in_flight: VecDeque<u64>,
     progress: Told,
-    /// The caller's hold, resume and abort.
+    /// The first write to the log that failed: the drives are stopped, and the run ends
+    /// with it.
+    log_failed: Option<LogError>,
+    /// The caller's hold, resume, stop and abort.
     caller: Option<Commands>,
 }
 
@@ -637,7 +696,13 @@ impl Run {
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
         loop {
             let now = self.clock.now();
-            self.obey(session, now, log)?;
+            self.obey(session, now, log);
+            if let Some(error) = &self.log_failed {
+                // The log is gone: the drives are brought to a stand and disabled before
+                // the run ends with it (once: the session keeps the first stop).
+                let why = format!("the log cannot be written ({error})");
+                session.stop_held(StopReason::Interrupted { why }, now);
+            }
             let frames = session.poll(now);
             if !frames.is_empty() {
                 self.outcome.bytes_written += port.send(name, &frames).await?;
@@ -647,7 +712,7 @@ impl Run {
                 }
             }
             let synced = frames.iter().any(is_sync);
-            self.report(session, log)?;
+            self.report(session, log);
             self.progress.step(session.progress());
             if matches!(session.phase(), Phase::Finished | Phase::Stopped) {
                 return Ok(());
@@ -673,38 +738,45 @@ impl Run {
         }
     }
 
+    /// Writes `event` to the log unless a write has failed (the first failure is kept).
+    fn write(&mut self, log: &mut ExecLog, event: log::Event) {
+        if self.log_failed.is_none() {
+            let t = self.clock.started.elapsed().as_secs_f64();
+            if let Err(error) = log.write(t, event) {
+                self.log_failed = Some(error);
+            }
+        }
+    }
+
     /// The caller's commands that have come: a hold slows the set-points along the path
-    /// to a stand, a resume brings them back up to speed, an abort is a quick stop.
-    fn obey(
-        &mut self,
-        session: &mut Session,
-        now: Duration,
-        log: &mut ExecLog,
-    ) -> Result<(), CanError> {
+    /// to a stand, a resume brings them back up to speed, a stop holds then disables the
+    /// drives, an abort is a quick stop.
+    fn obey(&mut self, session: &mut Session, now: Duration, log: &mut ExecLog) {
         while let Some(command) = self.caller.as_mut().and_then(Commands::try_next) {
             let text = match command {
                 control::Command::Hold => {
                     session.hold();
-                    "hold requested"
+                    "hold requested".to_owned()
                 }
                 control::Command::Resume => {
                     session.resume();
-                    "resume requested"
+                    "resume requested".to_owned()
+                }
+                control::Command::Stop { reason } => {
+                    let why = reason.to_owned();
+                    session.stop_held(StopReason::Interrupted { why }, now);
+                    format!(
+                        "stop requested ({reason}): the path held to a stand, then the drives \
+                         disabled"
+                    )
                 }
                 control::Command::Abort => {
                     session.stop(now);
-                    "abort requested: quick stop"
+                    "abort requested: quick stop".to_owned()
                 }
             };
-            let t = self.clock.started.elapsed().as_secs_f64();
-            log.write(
-                t,
-                log::Event::Message {
-                    text: text.to_owned(),
-                },
-            )?;
+            self.write(log, log::Event::Message { text });
         }
-        Ok(())
     }
 
     /// Reads until at most [`LOCKSTEP_WINDOW`] cycles are unacknowledged.
@@ -758,8 +830,7 @@ impl Run {
     }
 
     /// The session's events to the log and the outcome.
-    fn report(&mut self, session: &mut Session, log: &mut ExecLog) -> Result<(), CanError> {
-        let t = self.clock.started.elapsed().as_secs_f64();
+    fn report(&mut self, session: &mut Session, log: &mut ExecLog) {
         for event in session.events() {
             match &event {
                 Event::Late { .. } => {
@@ -776,9 +847,8 @@ impl Run {
                 _ => {}
             }
             let text = event.to_string();
-            log.write(t, log::Event::Message { text })?;
+            self.write(log, log::Event::Message { text });
         }
-        Ok(())
     }
 }
 

@@ -1,4 +1,4 @@
-//! The caller's hand on a running stream: hold, resume and abort, the same for every
+//! The caller's hand on a running stream: hold, resume, stop and abort, the same for every
 //! transport.
 //!
 //! [`control`] makes a pair: a [`Control`] for whoever presses the buttons (a terminal's
@@ -10,8 +10,13 @@
 //! |---|---|---|---|
 //! | [`Command::Hold`] | feed hold `!` | `HOLD` edge | set-points slowed along the path to a stand |
 //! | [`Command::Resume`] | cycle start `~` | `RESUME` edge | set-points brought back up to speed |
+//! | [`Command::Stop`] | feed hold `!`, then the run ends once the controller reports `Hold:0` or `Idle` | `HOLD` edge, then the run ends once the status reads held or idle | set-points slowed to a stand, then the drives disabled |
 //! | [`Command::Abort`] | soft reset 0x18 | `ABORT` edge | quick stop |
-
+//!
+//! A stop is what an interrupted bridge does (Ctrl-C, a signal, a console's stop button):
+//! the machine is brought to a stand along the path and left there, nothing queued is lost
+//! from the record, and the run ends saying where to resume. An abort is the second press:
+//! stop now, whatever it costs.
 use tokio::sync::mpsc;
 
 /// What the caller can ask of a running stream.
@@ -21,6 +26,12 @@ pub enum Command {
     Hold,
     /// Go on after a hold.
     Resume,
+    /// Hold, wait until the machine stands, and end the run there, saying where to resume;
+    /// `reason` (a signal's name, a button) goes into the log and the outcome.
+    Stop {
+        /// Why, in a few words.
+        reason: &'static str,
+    },
     /// Stop now and drop what is queued; the run ends, saying where to resume.
     Abort,
 }
@@ -38,6 +49,12 @@ impl Control {
     /// Asks the run to resume after a hold; `false` if the run has already ended.
     pub fn resume(&self) -> bool {
         self.send(Command::Resume)
+    }
+
+    /// Asks the run to hold and end once the machine stands; `false` if the run has
+    /// already ended.
+    pub fn stop(&self, reason: &'static str) -> bool {
+        self.send(Command::Stop { reason })
     }
 
     /// Asks the run to abort; `false` if the run has already ended.
@@ -88,9 +105,14 @@ mod tests {
         let other = control.clone();
         assert!(control.hold());
         assert!(other.resume());
+        assert!(other.stop("SIGINT"));
         assert!(control.abort());
         assert_eq!(commands.next().await, Command::Hold);
         assert_eq!(commands.try_next(), Some(Command::Resume));
+        assert_eq!(
+            commands.try_next(),
+            Some(Command::Stop { reason: "SIGINT" })
+        );
         assert_eq!(commands.next().await, Command::Abort);
         assert_eq!(commands.try_next(), None);
         drop((control, other));

@@ -32,4 +32,6 @@ pub mod serial;
 pub use control::{control, Command, Commands, Control};
 pub use link::{Link, LinkError, TransportKind};
 pub use progress::{Progress, ProgressFn, Unit};
-pub use run::{check_program, stream, Outcome, Posted, PreflightError, RunOptions, StreamError};
+pub use run::{
+    check_program, stream, Outcome, Posted, PreflightError, Resume, RunOptions, StreamError,
+};

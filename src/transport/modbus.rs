@@ -11,6 +11,18 @@
 //! The writer's clock is the wall clock times [`ModbusOptions::clock_scale`]: 1 for a
 //! machine, the simulator's time scale in a dry run, so that status polls and watchdog
 //! writes keep their meaning in the controller's time.
+//!
+//! # Ends
+//!
+//! A run that logged its start logs its end, whatever ends it, with the reason: done, an
+//! alarm, the writer's failure, the caller's stop or abort, a stall
+//! ([`ModbusOptions::stall_timeout`]), a controller that cannot be reached (at the start,
+//! or once the reconnections after a lost connection run out), an answer the map does not
+//! allow. The caller's stop and a stall are the writer's stop ([`RingWriter::stop`]): the
+//! controller held where it stands, `RUN` cleared. So is a log that can no longer be
+//! written: the controller is held first, then the run ends with the log's error. A run
+//! that did not complete says where to resume ([`ModbusOutcome::resume_move`]); an error
+//! once the controller was reached carries it too ([`ModbusError::Interrupted`]).
 
 use super::control::{Command, Commands};
 use super::progress::{Progress, ProgressFn, Unit};
@@ -63,7 +75,8 @@ impl std::fmt::Display for ModbusLink {
 
 /// How a program is streamed over Modbus.
 pub struct ModbusOptions {
-    /// The ring writer's settings (first sequence number, poll interval, retries).
+    /// The ring writer's settings (first sequence number, poll interval, retries, the
+    /// stop's wait for the stand).
     pub writer: WriterOptions,
     /// Longest wait for one answer, wall time.
     pub timeout: Duration,
@@ -75,12 +88,21 @@ pub struct ModbusOptions {
     pub max_reconnects: u32,
     /// The writer's clock in wall seconds per second (see the module docs).
     pub clock_scale: f64,
+    /// Hold and stop when the controller shows nothing new for this long, wall time (a hold
+    /// another client or the controller made counts; the caller's own does not); `None`
+    /// waits. See [`crate::protocol::modbus`], "Stalls".
+    pub stall_timeout: Option<Duration>,
+    /// Which move of the program each segment comes from
+    /// ([`segment_moves`](crate::post::modbus::segment_moves)), so that
+    /// [`ModbusOutcome::resume_move`] names a move; empty, the segments are the program and
+    /// it counts segments.
+    pub segment_moves: Vec<usize>,
     /// What is streamed, for the log.
     pub program: String,
     /// The controller's unit id (slave address); the map's is 1.
     pub unit: u8,
-    /// The caller's hold, resume and abort: the map's `HOLD`, `RESUME` and `ABORT` edges,
-    /// written ahead of any slot.
+    /// The caller's hold, resume, stop and abort: the map's `HOLD`, `RESUME` and `ABORT`
+    /// edges, written ahead of any slot; a stop is [`RingWriter::stop`].
     pub commands: Option<Commands>,
     /// Told how far the run is at every published segment and status read.
     pub on_progress: Option<ProgressFn>,
@@ -95,6 +117,8 @@ impl std::fmt::Debug for ModbusOptions {
             .field("max_backoff", &self.max_backoff)
             .field("max_reconnects", &self.max_reconnects)
             .field("clock_scale", &self.clock_scale)
+            .field("stall_timeout", &self.stall_timeout)
+            .field("segment_moves", &self.segment_moves.len())
             .field("program", &self.program)
             .field("unit", &self.unit)
             .field("commands", &self.commands.is_some())
@@ -112,6 +136,8 @@ impl Default for ModbusOptions {
             max_backoff: Duration::from_secs(2),
             max_reconnects: 8,
             clock_scale: 1.0,
+            stall_timeout: None,
+            segment_moves: Vec::new(),
             program: String::new(),
             unit: UNIT_ID,
             commands: None,
@@ -127,6 +153,9 @@ pub struct ModbusOutcome {
     pub completed: bool,
     /// The caller aborted: the controller stopped and flushed its ring.
     pub aborted: bool,
+    /// The run stopped with the controller held on the path (the caller's stop, or a
+    /// stall), and why, in words.
+    pub stopped: Option<String>,
     /// Segments in the program.
     pub segments: usize,
     /// Segments published to the ring.
@@ -135,6 +164,13 @@ pub struct ModbusOutcome {
     pub alarm: Option<crate::protocol::modbus::map::AlarmReport>,
     /// Why the stream could not go on, if it could not.
     pub failure: Option<WriterError>,
+    /// Where a run that did not complete resumes: the index in the program (see
+    /// [`ModbusOptions::segment_moves`]) of the move of the first segment the controller
+    /// did not report executed (`EXECUTED_SEQ`); `None` when completed.
+    pub resume_move: Option<usize>,
+    /// The program line (0-based) of `resume_move`, where [`crate::transport::stream`],
+    /// which knows the program's lines, filled it in.
+    pub resume_line: Option<usize>,
     /// Calls that got no answer in time.
     pub timeouts: u32,
     /// New connections made after the first.
@@ -167,7 +203,8 @@ pub fn rtu_bits(request: &Request, answer: Option<&Result<Response, Exception>>)
     frame(asked) + answered.map_or(0, frame)
 }
 
-/// Why a stream could not be carried out (an alarm or a writer failure is an outcome).
+/// Why a stream could not be carried out (an alarm, a stop or a writer failure is an
+/// outcome).
 #[derive(Debug, Error)]
 pub enum ModbusError {
     /// The controller could not be reached, `attempts` times in a row.
@@ -200,12 +237,32 @@ pub enum ModbusError {
         /// The answer.
         answer: String,
     },
-    /// The executed-path log.
+    /// The executed-path log. Once the stream has begun, the controller was stopped
+    /// (held, see [`RingWriter::stop`]) before the run ended with this.
     #[error(transparent)]
     Log(#[from] LogError),
+    /// Any of the above once the stream had begun, with where to resume.
+    #[error("{error}")]
+    Interrupted {
+        /// What ended it.
+        error: Box<ModbusError>,
+        /// As [`ModbusOutcome::resume_move`]: the controller's last report before it.
+        resume_move: usize,
+    },
 }
 
-/// Streams `segments` to the controller at `link`, logging to `log`.
+impl ModbusError {
+    /// Where to resume a stream that failed after it began.
+    pub fn resume_move(&self) -> Option<usize> {
+        match self {
+            ModbusError::Interrupted { resume_move, .. } => Some(*resume_move),
+            _ => None,
+        }
+    }
+}
+
+/// Streams `segments` to the controller at `link`, logging to `log`. Every run that
+/// logged its start logs its end, whatever ends it, with the reason.
 pub async fn stream_modbus(
     link: &ModbusLink,
     segments: Vec<Segment>,
@@ -213,15 +270,19 @@ pub async fn stream_modbus(
     log: &mut ExecLog,
 ) -> Result<ModbusOutcome, ModbusError> {
     let total = segments.len();
-    let mut commands = options.commands.take();
-    let mut progress = Told::new(
+    let progress = Told::new(
         &segments,
         options.writer.first_sequence,
         options.on_progress.take(),
     );
-    let mut writer = RingWriter::new(segments, options.writer.clone())?;
-    let start = Instant::now();
-    let t = |start: Instant| start.elapsed().as_secs_f64();
+    // The stall in the writer's clock, as everything it times.
+    let writer_options = WriterOptions {
+        stall_timeout: options
+            .stall_timeout
+            .map(|limit| limit.mul_f64(options.clock_scale)),
+        ..options.writer.clone()
+    };
+    let writer = RingWriter::new(segments, writer_options)?;
     log.write(
         0.0,
         log::Event::Start {
@@ -230,127 +291,245 @@ pub async fn stream_modbus(
             transport: link.transport().to_owned(),
         },
     )?;
-    // `None` once the writer has given up on a request: no new connection is made for it.
-    let mut ctx = Some(connect(link, &options).await?);
-    let mut outcome = ModbusOutcome {
-        completed: false,
-        aborted: false,
-        segments: total,
-        published: 0,
-        alarm: None,
-        failure: None,
-        timeouts: 0,
-        reconnects: 0,
-        wall_time: Duration::ZERO,
-        rtu_bits: 0,
+    let mut run = Run {
+        writer,
+        log: Logger { log, failed: None },
+        start: Instant::now(),
+        commands: options.commands.take(),
+        progress,
+        stall_timeout: options.stall_timeout,
+        stop_asked: None,
+        outcome: ModbusOutcome {
+            completed: false,
+            aborted: false,
+            stopped: None,
+            segments: total,
+            published: 0,
+            alarm: None,
+            failure: None,
+            resume_move: None,
+            resume_line: None,
+            timeouts: 0,
+            reconnects: 0,
+            wall_time: Duration::ZERO,
+            rtu_bits: 0,
+        },
     };
-    let mut finished = false;
-    while !finished {
-        while let Some(command) = commands.as_mut().and_then(Commands::try_next) {
+    let mut connected = false;
+    let result = run.stream(link, &options, &mut connected).await;
+    run.outcome.wall_time = run.start.elapsed();
+    let resume = {
+        let executed = run.writer.executed();
+        options
+            .segment_moves
+            .get(executed)
+            .copied()
+            .unwrap_or(executed)
+    };
+    let t = run.t();
+    let failed = run.log.failed.take();
+    let (completed, reason) = match (&result, &failed) {
+        (Err(error), _) => (false, Some(error.to_string())),
+        (Ok(()), Some(error)) => (false, Some(error.to_string())),
+        (Ok(()), None) => (run.outcome.completed, run.outcome.reason()),
+    };
+    // After a failed write the End may not land either; the failure is what the caller
+    // hears.
+    let ended = run.log.log.write(t, log::Event::End { completed, reason });
+    if !completed {
+        run.outcome.resume_move = Some(resume);
+    }
+    let error = match (result, failed) {
+        (Err(error), _) => Some(error),
+        (Ok(()), Some(error)) => Some(ModbusError::Log(error)),
+        (Ok(()), None) => {
+            ended?;
+            None
+        }
+    };
+    match error {
+        None => Ok(run.outcome),
+        Some(error) if connected => Err(ModbusError::Interrupted {
+            error: Box::new(error),
+            resume_move: resume,
+        }),
+        Some(error) => Err(error),
+    }
+}
+
+/// The executed-path log of a run: the first write that fails is kept, for the run to stop
+/// the controller and then end with it; nothing more is written after it.
+struct Logger<'a> {
+    log: &'a mut ExecLog,
+    failed: Option<LogError>,
+}
+
+impl Logger<'_> {
+    fn write(&mut self, t: f64, event: log::Event) {
+        if self.failed.is_none() {
+            if let Err(error) = self.log.write(t, event) {
+                self.failed = Some(error);
+            }
+        }
+    }
+}
+
+/// A stream under way.
+struct Run<'a> {
+    writer: RingWriter,
+    log: Logger<'a>,
+    start: Instant,
+    commands: Option<Commands>,
+    progress: Told,
+    /// [`ModbusOptions::stall_timeout`], for the words of a stall.
+    stall_timeout: Option<Duration>,
+    /// Why the writer was asked to stop, if it was: the outcome's words once it has.
+    stop_asked: Option<String>,
+    outcome: ModbusOutcome,
+}
+
+impl Run<'_> {
+    /// Seconds since the run started, for the log.
+    fn t(&self) -> f64 {
+        self.start.elapsed().as_secs_f64()
+    }
+
+    /// Stops the writer (see [`RingWriter::stop`]) for `why`, unless a stop is under way.
+    fn stop(&mut self, why: String) {
+        if self.stop_asked.is_none() {
+            self.stop_asked = Some(why);
+            self.writer.stop();
+        }
+    }
+
+    /// Drives the writer over the link until it has finished. `connected` is set once the
+    /// first connection is made: from then on the controller may have moved.
+    async fn stream(
+        &mut self,
+        link: &ModbusLink,
+        options: &ModbusOptions,
+        connected: &mut bool,
+    ) -> Result<(), ModbusError> {
+        // `None` once the writer has given up on a request: no new connection is made for it.
+        let mut ctx = Some(connect(link, options).await?);
+        *connected = true;
+        while !self.writer.is_finished() {
+            if let Some(error) = &self.log.failed {
+                // The log is gone: the controller is held before the run ends with it.
+                self.stop(format!("the log cannot be written ({error})"));
+            }
+            self.obey();
+            let now = self.start.elapsed().mul_f64(options.clock_scale);
+            match self.writer.poll(now) {
+                Some(request) => {
+                    let Some(conn) = ctx.as_mut() else {
+                        break;
+                    };
+                    let answer = tokio::time::timeout(options.timeout, call(conn, &request)).await;
+                    self.outcome.rtu_bits += rtu_bits(
+                        &request,
+                        match &answer {
+                            Ok(Ok(answer)) => Some(answer),
+                            _ => None,
+                        },
+                    );
+                    let lost = match answer {
+                        Ok(Ok(answer)) => {
+                            self.writer.response(answer);
+                            None
+                        }
+                        Ok(Err(Failure::Exception(code))) => {
+                            return Err(ModbusError::UnknownException { request, code });
+                        }
+                        Ok(Err(Failure::Mismatch(answer))) => {
+                            return Err(ModbusError::Mismatch { request, answer });
+                        }
+                        Ok(Err(Failure::Link(error))) => Some(error.to_string()),
+                        Err(_) => Some(format!(
+                            "no answer within {} ms",
+                            options.timeout.as_millis()
+                        )),
+                    };
+                    if let Some(why) = lost {
+                        self.outcome.timeouts += 1;
+                        let text = format!("{request}: {why}; reconnecting");
+                        self.log.write(self.t(), log::Event::Message { text });
+                        // The old connection goes: a late answer on it would be read as the
+                        // answer to the next request.
+                        ctx = None;
+                        self.writer.timeout();
+                        if !self.writer.is_finished() {
+                            self.outcome.reconnects += 1;
+                            ctx = Some(connect(link, options).await?);
+                        }
+                    }
+                }
+                None => {
+                    // Nothing to send until the writer's next poll: a short wall-time wait.
+                    let wait = options
+                        .writer
+                        .poll_interval
+                        .div_f64(options.clock_scale.max(1.0));
+                    tokio::time::sleep(
+                        wait.clamp(Duration::from_micros(200), Duration::from_millis(20)),
+                    )
+                    .await;
+                }
+            }
+            self.report();
+        }
+        self.report();
+        Ok(())
+    }
+
+    /// The caller's commands that have come, to the writer and the log.
+    fn obey(&mut self) {
+        while let Some(command) = self.commands.as_mut().and_then(Commands::try_next) {
             let text = match command {
                 Command::Hold => {
-                    writer.hold();
-                    "feed hold requested"
+                    self.writer.hold();
+                    "feed hold requested".to_owned()
                 }
                 Command::Resume => {
-                    writer.resume();
-                    "resume requested"
+                    self.writer.resume();
+                    "resume requested".to_owned()
+                }
+                Command::Stop { reason } => {
+                    self.stop(format!(
+                        "the stream was stopped ({reason}): the controller holds on the path"
+                    ));
+                    format!("stop requested ({reason}): HOLD, then RUN cleared once it stands")
                 }
                 Command::Abort => {
-                    writer.abort();
-                    "abort requested"
+                    self.writer.abort();
+                    "abort requested".to_owned()
                 }
             };
-            log.write(
-                t(start),
-                log::Event::Message {
-                    text: text.to_owned(),
-                },
-            )?;
+            self.log.write(self.t(), log::Event::Message { text });
         }
-        let now = start.elapsed().mul_f64(options.clock_scale);
-        match writer.poll(now) {
-            Some(request) => {
-                let Some(conn) = ctx.as_mut() else {
-                    break;
-                };
-                let answer = tokio::time::timeout(options.timeout, call(conn, &request)).await;
-                outcome.rtu_bits += rtu_bits(
-                    &request,
-                    match &answer {
-                        Ok(Ok(answer)) => Some(answer),
-                        _ => None,
-                    },
-                );
-                let lost = match answer {
-                    Ok(Ok(answer)) => {
-                        writer.response(answer);
-                        None
-                    }
-                    Ok(Err(Failure::Exception(code))) => {
-                        let error = ModbusError::UnknownException { request, code };
-                        end(log, t(start), false, Some(error.to_string()))?;
-                        return Err(error);
-                    }
-                    Ok(Err(Failure::Mismatch(answer))) => {
-                        let error = ModbusError::Mismatch { request, answer };
-                        end(log, t(start), false, Some(error.to_string()))?;
-                        return Err(error);
-                    }
-                    Ok(Err(Failure::Link(error))) => Some(error.to_string()),
-                    Err(_) => Some(format!(
-                        "no answer within {} ms",
-                        options.timeout.as_millis()
-                    )),
-                };
-                if let Some(why) = lost {
-                    outcome.timeouts += 1;
-                    log.write(
-                        t(start),
-                        log::Event::Message {
-                            text: format!("{request}: {why}; reconnecting"),
-                        },
-                    )?;
-                    // The old connection goes: a late answer on it would be read as the
-                    // answer to the next request.
-                    ctx = None;
-                    writer.timeout();
-                    if !writer.is_finished() {
-                        outcome.reconnects += 1;
-                        ctx = Some(connect(link, &options).await?);
-                    }
-                }
-            }
-            None => {
-                // Nothing to send until the writer's next poll: a short wall-time wait.
-                let wait = options
-                    .writer
-                    .poll_interval
-                    .div_f64(options.clock_scale.max(1.0));
-                tokio::time::sleep(
-                    wait.clamp(Duration::from_micros(200), Duration::from_millis(20)),
-                )
-                .await;
-            }
-        }
-        while let Some(event) = writer.next_event() {
-            let time = t(start);
+    }
+
+    /// The writer's events to the log, the caller's display and the outcome.
+    fn report(&mut self) {
+        while let Some(event) = self.writer.next_event() {
+            let time = self.t();
             match event {
                 WriterEvent::Identified(_) => {}
                 WriterEvent::Published { sequence, slot } => {
-                    outcome.published += 1;
-                    progress.published(outcome.published, start.elapsed());
-                    log.write(
+                    self.outcome.published += 1;
+                    self.progress
+                        .published(self.outcome.published, self.start.elapsed());
+                    self.log.write(
                         time,
                         log::Event::Sent {
                             line: sequence as usize,
                             text: format!("segment {sequence} in slot {slot}"),
                         },
-                    )?;
+                    );
                 }
                 WriterEvent::Status(s) => {
-                    progress.status(&s, start.elapsed());
-                    log.write(
+                    self.progress.status(&s, self.start.elapsed());
+                    self.log.write(
                         time,
                         log::Event::Status {
                             state: format!("{:?}", s.state),
@@ -359,41 +538,59 @@ pub async fn stream_modbus(
                             rx_free: None,
                             line: Some(u64::from(s.executed)),
                         },
-                    )?
+                    );
                 }
                 WriterEvent::Alarm(alarm) => {
-                    outcome.alarm = Some(alarm);
-                    log.write(
+                    self.outcome.alarm = Some(alarm);
+                    self.log.write(
                         time,
                         log::Event::Alarm {
                             code: u32::from(alarm.code.code()),
                             message: alarm.to_string(),
                         },
-                    )?;
-                    finished = true;
+                    );
                 }
-                WriterEvent::Done => {
-                    outcome.completed = true;
-                    finished = true;
+                WriterEvent::Stalled { waited } => {
+                    // The writer counts in its clock: the caller's limit is in wall time.
+                    let seconds = self.stall_timeout.unwrap_or(waited).as_secs_f64();
+                    let why = format!("nothing new from the controller for {seconds} s");
+                    self.log.write(
+                        time,
+                        log::Event::Message {
+                            text: format!("{why}: holding"),
+                        },
+                    );
+                    self.stop(format!("{why}: held"));
                 }
-                WriterEvent::Aborted => {
-                    outcome.aborted = true;
-                    finished = true;
-                }
-                WriterEvent::Failed(error) => {
-                    outcome.failure = Some(error);
-                    finished = true;
-                }
+                WriterEvent::Done => self.outcome.completed = true,
+                WriterEvent::Aborted => self.outcome.aborted = true,
+                WriterEvent::Stopped => self.outcome.stopped = self.stop_asked.clone(),
+                WriterEvent::Failed(error) => self.outcome.failure = Some(error),
             }
         }
     }
-    outcome.wall_time = start.elapsed();
-    let reason = outcome
-        .alarm
-        .map(|a| a.to_string())
-        .or_else(|| outcome.failure.as_ref().map(ToString::to_string));
-    end(log, t(start), outcome.completed, reason)?;
-    Ok(outcome)
+}
+
+impl ModbusOutcome {
+    /// Why the run did not complete, for the log's End; `None` if it did.
+    fn reason(&self) -> Option<String> {
+        if self.completed {
+            return None;
+        }
+        Some(
+            self.alarm
+                .map(|a| a.to_string())
+                .or_else(|| self.failure.as_ref().map(ToString::to_string))
+                .or_else(|| self.stopped.clone())
+                .unwrap_or_else(|| {
+                    if self.aborted {
+                        "aborted: the controller stopped and flushed its ring".to_owned()
+                    } else {
+                        "the stream ended before the controller read done".to_owned()
+                    }
+                }),
+        )
+    }
 }
 
 /// The caller's progress display: what it was last told, and the planned time of the
@@ -460,11 +657,6 @@ impl Told {
             report(&self.progress);
         }
     }
-}
-
-/// The log's last event of a stream.
-fn end(log: &mut ExecLog, t: f64, completed: bool, reason: Option<String>) -> Result<(), LogError> {
-    log.write(t, log::Event::End { completed, reason })
 }
 
 /// Why a call brought no answer the writer can take.

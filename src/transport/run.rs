@@ -19,11 +19,14 @@ use crate::config::connection::SettingError;
 use crate::config::machine::MachineProfile;
 use crate::log::ExecLog;
 use crate::post::gcode::parse::{read_program_with_lines, ParseError};
-use crate::post::modbus::{segments, SegmentError};
+use crate::post::modbus::{segment_moves, segments, SegmentError};
 use crate::post::setpoints::SampleConfig;
 use crate::program::limits::{check_limits, LimitError};
+use crate::program::reentry::{approach, ReentryError};
 use crate::program::Program;
-use crate::protocol::canopen::session::SessionConfig;
+use crate::protocol::canopen::session::{SessionConfig, StopReason};
+use crate::protocol::grbl::{ResumePoint, StreamerConfig};
+use crate::protocol::modbus::WriterOptions;
 
 /// A program as it goes to a machine: the G-code written for it, line by line (what a
 /// grbl-family controller is sent), and the moves those lines say, each with its file
@@ -56,6 +59,12 @@ impl Posted {
             program,
             move_lines,
         })
+    }
+
+    /// The first move said on `line` (0-based) or after it: where a resume at that line
+    /// picks the program up.
+    pub fn first_move_at(&self, line: usize) -> usize {
+        self.move_lines.partition_point(|&l| l < line + 1)
     }
 
     /// Checks the program against `machine`'s travel, speeds and spindle, naming the file
@@ -95,12 +104,16 @@ pub fn check_program(lines: &[String], machine: &MachineProfile) -> Result<(), P
 /// How a stream runs, whatever the transport.
 #[derive(Default)]
 pub struct RunOptions {
-    /// On a serial line, hold and stop when the controller says nothing new for this long;
-    /// `None` waits.
+    /// Hold and stop when the controller says nothing new for this long (a hold the
+    /// controller or another client made counts; the caller's own does not); `None` waits.
     pub stall_timeout: Option<Duration>,
-    /// On a serial line, resume the program at this line (0-based) behind a preamble that
-    /// restores its modes.
+    /// Resume the program at this line (0-based): inside the cut, the ring re-enters along
+    /// the groove first ([`crate::program::reentry`]); on a serial line a preamble restores
+    /// the program's modes.
     pub resume_at: Option<usize>,
+    /// A grbl-family controller found in alarm before the first line is unlocked (`$X`)
+    /// instead of refused: the operator has checked the machine.
+    pub unlock: bool,
     /// Told how far the run is, as it goes.
     pub progress: Option<ProgressFn>,
 }
@@ -126,21 +139,35 @@ impl Outcome {
         }
     }
 
-    /// Why the run did not complete, in words; `None` if it did. Where to resume a
-    /// serial run is its [`StreamOutcome::resume`].
+    /// Where to resume, if the run did not complete and that is known.
+    pub fn resume(&self) -> Option<Resume> {
+        match self {
+            Outcome::Serial(o) => o.resume.as_ref().map(Resume::from),
+            Outcome::Modbus(o) => o.resume_line.map(Resume::at),
+            Outcome::Can(o) => o.resume_line.map(Resume::at),
+        }
+    }
+
+    /// Why the run did not complete, in words; `None` if it did; see [`Outcome::resume`]
+    /// for where to go on.
     pub fn stop(&self) -> Option<String> {
         match self {
             _ if self.completed() => None,
             Outcome::Serial(o) => Some(format!("the stream {}", o.ending)),
-            Outcome::Modbus(o) => Some(match (o.alarm, &o.failure) {
-                (Some(alarm), _) => format!("the controller stopped the stream: {alarm}"),
-                (None, Some(failure)) => format!("the stream failed: {failure}"),
-                (None, None) if o.aborted => {
+            Outcome::Modbus(o) => Some(match (o.alarm, &o.failure, &o.stopped) {
+                (Some(alarm), _, _) => format!("the controller stopped the stream: {alarm}"),
+                (None, Some(failure), _) => format!("the stream failed: {failure}"),
+                (None, None, Some(stopped)) => stopped.clone(),
+                (None, None, None) if o.aborted => {
                     "the stream was aborted: the controller stopped and flushed its ring".into()
                 }
-                (None, None) => "the stream ended before the controller read done".into(),
+                (None, None, None) => "the stream ended before the controller read done".into(),
             }),
             Outcome::Can(o) => Some(match &o.stop {
+                // The bridge's own stops: the caller's, a stall.
+                Some(reason @ (StopReason::Interrupted { .. } | StopReason::Stalled { .. })) => {
+                    format!("the job stopped: {reason}")
+                }
                 Some(reason) => format!("the drives stopped the job: {reason}"),
                 None => "the job ended before the drives settled".into(),
             }),
@@ -179,6 +206,36 @@ impl Outcome {
     }
 }
 
+/// Where a run that did not complete goes on, whatever the transport: give `line` to
+/// [`RunOptions::resume_at`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Resume {
+    /// The first program line (0-based) not known to have executed.
+    pub line: usize,
+    /// Lines from `line` on that may have executed all the same (the resume re-enters along
+    /// the groove, so cutting them again is harmless); empty when none did.
+    pub possibly_executed: std::ops::Range<usize>,
+}
+
+impl Resume {
+    /// At `line`, nothing after it run.
+    fn at(line: usize) -> Resume {
+        Resume {
+            line,
+            possibly_executed: line..line,
+        }
+    }
+}
+
+impl From<&ResumePoint> for Resume {
+    fn from(point: &ResumePoint) -> Resume {
+        Resume {
+            line: point.line_index,
+            possibly_executed: point.possibly_executed.clone(),
+        }
+    }
+}
+
 /// Why a stream failed. Stops the machine or the controller decides (an alarm, an error,
 /// a reset, the caller's abort) are not failures: they end in an [`Outcome`].
 #[derive(Debug, Error)]
@@ -186,6 +243,23 @@ pub enum StreamError {
     /// The program failed the machine check; nothing was opened.
     #[error(transparent)]
     Preflight(#[from] PreflightError),
+    /// A fieldbus transport failed once the run had begun; the controller's (or the
+    /// drives') last report says where to resume.
+    #[error("{error}")]
+    Interrupted {
+        /// What ended it.
+        error: Box<StreamError>,
+        /// Where to resume.
+        resume: Resume,
+    },
+    /// The program cannot be re-entered at the resume line.
+    #[error("cannot resume at line {}: {error}", .line + 1)]
+    Reentry {
+        /// The resume line (0-based).
+        line: usize,
+        /// Why.
+        error: ReentryError,
+    },
     /// The program cannot go through the Modbus register map.
     #[error(transparent)]
     Segments(#[from] SegmentError),
@@ -203,6 +277,18 @@ pub enum StreamError {
     Can(#[from] CanError),
 }
 
+impl StreamError {
+    /// Where to resume after a failure mid-stream, if the controller's reports before it
+    /// tell.
+    pub fn resume(&self) -> Option<Resume> {
+        match self {
+            StreamError::Serial(error) => error.resume().map(Resume::from),
+            StreamError::Interrupted { resume, .. } => Some(resume.clone()),
+            _ => None,
+        }
+    }
+}
+
 /// Streams `posted` to the machine at `link`, which `machine` describes: checked against
 /// its limits first, then run over the link's transport, the caller's `commands` obeyed,
 /// every event logged to `log`.
@@ -216,49 +302,136 @@ pub async fn stream(
 ) -> Result<Outcome, StreamError> {
     posted.check(machine)?;
     let name = posted.name.clone();
-    Ok(match link {
-        Link::Serial { port, baud } => {
-            let options = StreamOptions {
-                program: name,
-                no_progress_timeout: options.stall_timeout,
-                resume_at: options.resume_at,
-                on_progress: options.progress,
-                commands: Some(commands),
-                ..StreamOptions::default()
-            };
-            let outcome = stream_port(port, *baud, posted.lines.clone(), options, log).await?;
-            Outcome::Serial(Box::new(outcome))
+    let from = options.resume_at.map(|line| posted.first_move_at(line));
+    let approach = match (options.resume_at, from) {
+        (Some(line), Some(from)) => {
+            approach(&posted.program, from).map_err(|error| StreamError::Reentry { line, error })?
         }
-        Link::Modbus {
-            link,
-            unit,
-            timeout,
-        } => {
-            let options = ModbusOptions {
-                program: name,
-                unit: *unit,
-                timeout: *timeout,
-                on_progress: options.progress,
-                commands: Some(commands),
-                ..ModbusOptions::default()
-            };
-            let segments = segments(&posted.program)?;
-            Outcome::Modbus(stream_modbus(link, segments, options, log).await?)
-        }
-        Link::Can { link, drives } => {
-            let options = CanOptions {
-                session: SessionConfig {
-                    hold_ramp: machine.stop_time(),
-                    ..SessionConfig::for_drives(drives)?
+        _ => Vec::new(),
+    };
+    // What the fieldbus transports run: the approach, then the moves from the resume
+    // move on; and each of those moves' program line (0-based), the approach's being the
+    // resume line's, for where a stop resumes.
+    let from = from.unwrap_or(0);
+    let resume_line = options.resume_at.unwrap_or(0);
+    let mut program = Program {
+        moves: approach.clone(),
+    };
+    program
+        .moves
+        .extend_from_slice(&posted.program.moves[from..]);
+    let lines: Vec<usize> = std::iter::repeat_n(resume_line, approach.len())
+        .chain(posted.move_lines[from..].iter().map(|&l| l - 1))
+        .collect();
+    let line_of = |resume_move: usize| {
+        lines
+            .get(resume_move)
+            .copied()
+            .unwrap_or(posted.lines.len())
+    };
+    let started = std::time::Instant::now();
+    let result: Result<Outcome, StreamError> = async {
+        Ok(match link {
+            Link::Serial { port, baud } => {
+                let options = StreamOptions {
+                    program: name,
+                    streamer: StreamerConfig {
+                        check_state: true,
+                        unlock: options.unlock,
+                        ..StreamerConfig::default()
+                    },
+                    no_progress_timeout: options.stall_timeout,
+                    resume_at: options.resume_at,
+                    approach,
+                    x_diameter: machine.x_diameter(),
+                    on_progress: options.progress,
+                    commands: Some(commands),
+                    ..StreamOptions::default()
+                };
+                let outcome = stream_port(port, *baud, posted.lines.clone(), options, log).await?;
+                Outcome::Serial(Box::new(outcome))
+            }
+            Link::Modbus {
+                link,
+                unit,
+                timeout,
+            } => {
+                let options = ModbusOptions {
+                    writer: WriterOptions {
+                        // A stop waits for the stand as long as the machine takes to stop from
+                        // full speed, and a margin for the status polls and the link.
+                        stand_timeout: machine.stop_time() + Duration::from_secs(2),
+                        ..WriterOptions::default()
+                    },
+                    stall_timeout: options.stall_timeout,
+                    segment_moves: segment_moves(&program),
+                    program: name,
+                    unit: *unit,
+                    timeout: *timeout,
+                    on_progress: options.progress,
+                    commands: Some(commands),
+                    ..ModbusOptions::default()
+                };
+                let segments = segments(&program)?;
+                let mut outcome = stream_modbus(link, segments, options, log).await.map_err(
+                    |error| match error.resume_move() {
+                        Some(at) => StreamError::Interrupted {
+                            resume: Resume::at(line_of(at)),
+                            error: Box::new(error.into()),
+                        },
+                        None => error.into(),
+                    },
+                )?;
+                outcome.resume_line = outcome.resume_move.map(line_of);
+                Outcome::Modbus(outcome)
+            }
+            Link::Can { link, drives } => {
+                let options = CanOptions {
+                    session: SessionConfig {
+                        hold_ramp: machine.stop_time(),
+                        stall_timeout: options.stall_timeout,
+                        ..SessionConfig::for_drives(drives)?
+                    },
+                    sample: SampleConfig::for_drives(machine, drives),
+                    clock: CanClock::Wall,
+                    answer_timeout: Duration::from_secs(1),
+                    program: name,
+                    on_progress: options.progress,
+                    commands: Some(commands),
+                };
+                let mut outcome =
+                    stream_can(link, &program, options, log)
+                        .await
+                        .map_err(|error| match error.resume_move() {
+                            Some(at) => StreamError::Interrupted {
+                                resume: Resume::at(line_of(at)),
+                                error: Box::new(error.into()),
+                            },
+                            None => error.into(),
+                        })?;
+                outcome.resume_line = outcome.resume_move.map(line_of);
+                Outcome::Can(outcome)
+            }
+        })
+    }
+    .await;
+    // The serial transport logs where to resume before its End; the fieldbus ones know
+    // moves, not lines, so the resume line they end at is logged here, beside it.
+    if !matches!(link, Link::Serial { .. }) {
+        let resume = match &result {
+            Ok(outcome) => outcome.resume(),
+            Err(error) => error.resume(),
+        };
+        if let Some(resume) = resume {
+            // Best effort: the run has ended, and what ended it is what the caller hears.
+            let _ = log.write(
+                started.elapsed().as_secs_f64(),
+                crate::log::Event::ResumeAt {
+                    line: resume.line + 1,
+                    possibly_run_to: None,
                 },
-                sample: SampleConfig::for_drives(machine, drives),
-                clock: CanClock::Wall,
-                answer_timeout: Duration::from_secs(1),
-                program: name,
-                on_progress: options.progress,
-                commands: Some(commands),
-            };
-            Outcome::Can(stream_can(link, &posted.program, options, log).await?)
+            );
         }
-    })
+    }
+    result
 }

@@ -30,12 +30,22 @@
 //!   (`!`, which stops motion without losing position, unlike a reset) and the run reports.
 //!   A hold (the caller's, or the controller in `Hold`, `Door` or `Tool`: the streamer's
 //!   [`Streamer::is_held`]) is not a stall: the clock restarts while it lasts.
+//! - **Interrupted**: the caller's [`Command::Stop`] (a signal, a console's stop button):
+//!   the streamer's [`Streamer::interrupt`] sends a feed hold and no line after it, and the
+//!   run polls on until a report shows the machine at rest ([`Streamer::is_standing`]), so
+//!   the resume point comes from where it stands. The wait is limited (the no-progress
+//!   timeout, else [`STAND_TIMEOUT`]); past it the run ends saying so.
 //! - **Failed**: a read or write error, or the controller closing the stream, is a
-//!   [`SerialError`] naming the port: nothing is known about what ran after that.
+//!   [`SerialError`] naming the port. The controller goes on with what it has received,
+//!   so the error carries the first line not known to have executed and the last one it
+//!   may run ([`Streamer::resume_point_now`]). An executed-path log that cannot be written
+//!   fails the run too, but holds the machine first: a run that cannot be recorded must
+//!   not go on cutting.
 //!
 //! Every run is logged between [`log::Event::Start`] and [`log::Event::End`]
 //! (also when it fails, as far as the log can still be written), with times in seconds
-//! since the start.
+//! since the start; a run that did not complete logs where it resumes
+//! ([`log::Event::ResumeAt`]) just before its End.
 
 use std::fmt;
 use std::future::pending;
@@ -52,6 +62,7 @@ use super::progress::{Progress, ProgressFn, Unit};
 use super::run::{check_program, PreflightError};
 use crate::config::machine::MachineProfile;
 use crate::log::{self, ExecLog, LogError};
+use crate::program::Move;
 use crate::protocol::grbl::{
     self, Event, LineRef, MachineState, ResumePoint, Status, StopReason, Streamer, StreamerConfig,
 };
@@ -62,6 +73,10 @@ pub const TRANSPORT: &str = "serial";
 /// How long the last bytes of a run (a feed hold, a soft reset) may take to go out before
 /// the link is declared dead: they are a few bytes, so anything longer means it is stuck.
 const FINAL_WRITE_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// The longest wait, after a stop, for a report of the machine at rest when no
+/// no-progress timeout is set: a feed hold decelerates a machine within a second or two.
+pub const STAND_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// Bytes read at once: a serial link delivers far less between two reads.
 const READ_CHUNK: usize = 1024;
@@ -100,6 +115,13 @@ pub struct StreamOptions {
     /// Resume the program at this line (0-based) behind a preamble that restores its modes
     /// ([`Streamer::resume_from`]); `None` streams from [`StreamerConfig::start_line`].
     pub resume_at: Option<usize>,
+    /// With `resume_at`: the moves that bring the ring back onto the groove at that line
+    /// ([`crate::program::reentry::approach`]), written into the resume preamble
+    /// ([`grbl::reentry_preamble`]); empty where the program's own moves are the way.
+    pub approach: Vec<Move>,
+    /// X words of the program are diameters unless it says otherwise (G7/G8): how the
+    /// approach writes X.
+    pub x_diameter: bool,
     /// The link's baud rate, for [`StreamOutcome::link_utilization`].
     pub baud: Option<u32>,
     /// Stop with a feed hold when the controller says nothing new for this long; `None`
@@ -131,6 +153,8 @@ impl Default for StreamOptions {
             program: String::new(),
             streamer: StreamerConfig::default(),
             resume_at: None,
+            approach: Vec::new(),
+            x_diameter: false,
             baud: None,
             no_progress_timeout: None,
             wait_for_idle: true,
@@ -150,6 +174,8 @@ impl fmt::Debug for StreamOptions {
             .field("program", &self.program)
             .field("streamer", &self.streamer)
             .field("resume_at", &self.resume_at)
+            .field("approach", &self.approach)
+            .field("x_diameter", &self.x_diameter)
             .field("baud", &self.baud)
             .field("no_progress_timeout", &self.no_progress_timeout)
             .field("wait_for_idle", &self.wait_for_idle)
@@ -259,12 +285,16 @@ pub enum SerialError {
         port: String,
         /// Why.
         error: std::io::Error,
+        /// Where to resume, as far as the controller's reports before the failure tell.
+        resume: Option<ResumePoint>,
     },
     /// The controller's end closed the stream.
     #[error("{port}: the connection was closed (end of file) mid-stream")]
     Eof {
         /// The port.
         port: String,
+        /// Where to resume, as far as the controller's reports before the failure tell.
+        resume: Option<ResumePoint>,
     },
     /// The program cannot be streamed as it is (a forbidden byte, a line too long).
     #[error("the program cannot be streamed: {0}")]
@@ -272,16 +302,29 @@ pub enum SerialError {
     /// The program failed the machine check; nothing was sent.
     #[error(transparent)]
     Preflight(#[from] PreflightError),
-    /// The executed-path log could not be written.
+    /// The executed-path log could not be written (the machine was held first).
     #[error(transparent)]
     Log(#[from] LogError),
 }
 
-/// How busy a serial link was: `bytes` × 10 bits (8N1: a start bit, eight data bits, a
-/// stop bit) over what `baud` could carry in `time`. `None` for a zero baud rate or time.
+impl SerialError {
+    /// Where to resume after a failure mid-stream.
+    pub fn resume(&self) -> Option<&ResumePoint> {
+        match self {
+            SerialError::Io { resume, .. } | SerialError::Eof { resume, .. } => resume.as_ref(),
+            _ => None,
+        }
+    }
+}
+
+/// How busy a serial link was, 0 to 1: `bytes` × 10 bits (8N1: a start bit, eight data
+/// bits, a stop bit) over what `baud` could carry in `time`. `None` for a zero baud rate or
+/// time, and when the bytes went faster than `baud` allows: the link was then no serial
+/// line at that rate (a pseudo-terminal ignores the rate; a simulator runs on its own
+/// clock), so the ratio measures nothing of it.
 pub fn link_utilization(bytes: u64, baud: u32, time: Duration) -> Option<f64> {
     let capacity = f64::from(baud) * time.as_secs_f64();
-    (capacity > 0.0).then(|| bytes as f64 * 10.0 / capacity)
+    Some(bytes as f64 * 10.0 / capacity).filter(|&share| capacity > 0.0 && share <= 1.0)
 }
 
 /// Opens the serial port at `path` (8N1, no flow control, as grbl expects) and streams
@@ -325,6 +368,21 @@ pub async fn stream<P: AsyncRead + AsyncWrite + Unpin>(
     let config = options.streamer.clone();
     let poll_interval = config.poll_interval;
     let streamer = match options.resume_at {
+        Some(index) if !options.approach.is_empty() => {
+            let preamble = grbl::reentry_preamble(
+                &lines,
+                index,
+                &options.approach,
+                options.x_diameter,
+                config.spin_up_dwell_s,
+            )
+            .map_err(|e| SerialError::Program(e.into()))?;
+            let config = StreamerConfig {
+                start_line: index,
+                ..config
+            };
+            Streamer::with_preamble(lines.clone(), preamble, config)
+        }
         Some(index) => Streamer::resume_from(lines.clone(), index, config),
         None => Streamer::new(lines.clone(), config),
     }
@@ -351,6 +409,7 @@ pub async fn stream<P: AsyncRead + AsyncWrite + Unpin>(
         bytes_at_all_acked: 0,
         motion_done: false,
         stopped: None,
+        stand_by: None,
         alarms: Vec::new(),
         wco: None,
         last_status: None,
@@ -383,6 +442,8 @@ struct Run<'a> {
     /// The streamer's [`Event::MotionDone`]: the motion after the last line finished.
     motion_done: bool,
     stopped: Option<StopReason>,
+    /// After a [`Command::Stop`]: the latest a report of the machine at rest may come.
+    stand_by: Option<Instant>,
     alarms: Vec<u16>,
     /// The last work coordinate offset seen, in the order the reports came.
     wco: Option<Vec<f64>>,
@@ -403,7 +464,20 @@ impl Run<'_> {
         SerialError::Io {
             port: self.port.clone(),
             error,
+            resume: Some(self.streamer.resume_point_now()),
         }
+    }
+
+    /// Logs where a run that did not complete resumes, if it is known.
+    fn log_resume(&mut self, resume: Option<&ResumePoint>) -> Result<(), LogError> {
+        let Some(resume) = resume else {
+            return Ok(());
+        };
+        let possibly = &resume.possibly_executed;
+        self.write_log(log::Event::ResumeAt {
+            line: resume.line_index + 1,
+            possibly_run_to: (!possibly.is_empty()).then_some(possibly.end),
+        })
     }
 
     async fn run<P: AsyncRead + AsyncWrite + Unpin>(
@@ -430,6 +504,9 @@ impl Run<'_> {
                     )),
                 };
                 tracing::debug!(?ending, "stream ended");
+                if ending != Ending::Completed {
+                    self.log_resume(self.streamer.resume_point().as_ref())?;
+                }
                 self.write_log(log::Event::End {
                     completed: ending == Ending::Completed,
                     reason,
@@ -439,6 +516,7 @@ impl Run<'_> {
             Err(error) => {
                 tracing::warn!(%error, "stream failed");
                 // Best effort: the log may be what failed.
+                let _ = self.log_resume(error.resume());
                 let _ = self.write_log(log::Event::End {
                     completed: false,
                     reason: Some(error.to_string()),
@@ -448,15 +526,42 @@ impl Run<'_> {
         }
     }
 
-    /// The loop: bytes out, bytes in, the poll clock, the caller's commands, the watchdog.
+    /// The run over `port`; a log that cannot be written holds the machine before the run
+    /// fails.
     async fn drive<P: AsyncRead + AsyncWrite + Unpin>(
         &mut self,
         port: P,
         poll_interval: Option<Duration>,
-        mut commands: Option<Commands>,
+        commands: Option<Commands>,
     ) -> Result<Ending, SerialError> {
         let (mut reader, mut writer) = tokio::io::split(port);
         let mut out: Vec<u8> = Vec::new();
+        let result = self
+            .exchange(&mut reader, &mut writer, &mut out, poll_interval, commands)
+            .await;
+        if let Err(SerialError::Log(error)) = result {
+            tracing::warn!(%error, "the log cannot be written: feed hold");
+            self.streamer
+                .interrupt("the executed-path log cannot be written");
+            if let Some(bytes) = self.streamer.transmit() {
+                out.extend_from_slice(&bytes);
+            }
+            // The hold matters more than what it costs to say so.
+            let _ = self.write_final(&mut writer, &mut out).await;
+            return Err(SerialError::Log(error));
+        }
+        result
+    }
+
+    /// The loop: bytes out, bytes in, the poll clock, the caller's commands, the watchdog.
+    async fn exchange<P: AsyncRead + AsyncWrite + Unpin>(
+        &mut self,
+        reader: &mut tokio::io::ReadHalf<P>,
+        writer: &mut WriteHalf<P>,
+        out: &mut Vec<u8>,
+        poll_interval: Option<Duration>,
+        mut commands: Option<Commands>,
+    ) -> Result<Ending, SerialError> {
         let mut buffer = vec![0u8; READ_CHUNK];
         // Ticks on a fixed grid from the start, and the streamer is told the grid time, so
         // a late wake-up never makes a poll look early and get skipped.
@@ -478,12 +583,14 @@ impl Run<'_> {
                 // What is queued still goes out: real-time bytes queued with the stop (a soft
                 // reset's 0x18), and the rest of a line cut off mid-write, which would
                 // otherwise sit in the controller's buffer and merge with the next command.
-                self.write_final(&mut writer, &mut out).await?;
+                self.write_final(writer, out).await?;
                 return Ok(ending);
             }
-            let deadline = self.timeout.map(|timeout| last_progress + timeout);
+            let deadline = self
+                .stand_by
+                .or(self.timeout.map(|timeout| last_progress + timeout));
             tokio::select! {
-                written = writer.write(&out), if !out.is_empty() => {
+                written = writer.write(out), if !out.is_empty() => {
                     let n = written.map_err(|e| self.io_error(e))?;
                     if n == 0 {
                         return Err(self.io_error(std::io::ErrorKind::WriteZero.into()));
@@ -494,7 +601,10 @@ impl Run<'_> {
                 read = reader.read(&mut buffer) => {
                     let n = read.map_err(|e| self.io_error(e))?;
                     if n == 0 {
-                        return Err(SerialError::Eof { port: self.port.clone() });
+                        return Err(SerialError::Eof {
+                            port: self.port.clone(),
+                            resume: Some(self.streamer.resume_point_now()),
+                        });
                     }
                     self.bytes_read += n as u64;
                     self.streamer.receive(&buffer[..n]);
@@ -503,7 +613,19 @@ impl Run<'_> {
                     self.streamer.poll(at.duration_since(self.start));
                 }
                 command = next_command(&mut commands) => self.command(command)?,
-                () = wait_until(deadline) => {
+                () = wait_until(deadline), if self.stand_by.is_some() => {
+                    tracing::warn!("no report of the machine at rest after the stop");
+                    self.write_log(log::Event::Message {
+                        text: "the controller did not report the machine at rest after the \
+                               feed hold: check it stands before resuming"
+                            .to_owned(),
+                    })?;
+                    self.stand_by = None;
+                    if let Some(reason) = self.stopped.clone() {
+                        return Ok(Ending::Stopped(reason));
+                    }
+                }
+                () = wait_until(deadline), if self.stand_by.is_none() => {
                     let after = self.timeout.unwrap_or_default();
                     tracing::warn!(seconds = after.as_secs_f64(), "no progress: feed hold");
                     self.streamer.feed_hold();
@@ -511,7 +633,7 @@ impl Run<'_> {
                         out.extend_from_slice(&bytes);
                     }
                     self.drain_events()?;
-                    self.write_final(&mut writer, &mut out).await?;
+                    self.write_final(writer, out).await?;
                     return Ok(Ending::TimedOut { after });
                 }
             }
@@ -549,6 +671,12 @@ impl Run<'_> {
                 self.streamer.resume();
                 "resume requested"
             }
+            Command::Stop { reason } => {
+                self.streamer.interrupt(reason);
+                let wait = self.timeout.unwrap_or(STAND_TIMEOUT);
+                self.stand_by = Some(Instant::now() + wait);
+                "stop requested: feed hold, then the run ends once the machine stands"
+            }
             Command::Abort => {
                 self.streamer.soft_reset();
                 "soft reset requested"
@@ -563,7 +691,11 @@ impl Run<'_> {
     /// How the run ends now, if it does.
     fn ending(&self) -> Option<Ending> {
         if let Some(reason) = &self.stopped {
-            return Some(Ending::Stopped(reason.clone()));
+            // An interrupted run ends once the machine stands (or the wait for it ran out).
+            let waiting = matches!(reason, StopReason::Interrupted { .. })
+                && self.stand_by.is_some()
+                && !self.streamer.is_standing();
+            return (!waiting).then(|| Ending::Stopped(reason.clone()));
         }
         let done = self.all_acked_at.is_some() && (self.motion_done || !self.wait_for_idle);
         done.then_some(Ending::Completed)

@@ -2,6 +2,7 @@
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
+use whirl::papers::section::MIN_ACCURACY;
 use whirl::transport::TransportKind;
 
 #[derive(Parser)]
@@ -56,8 +57,9 @@ pub(crate) enum Command {
         /// default: the machine profile's `[connection]`, else serial.
         #[arg(long, value_enum)]
         transport: Option<Transport>,
-        /// Baud rate of the serial line; default: the profile's, else 115200.
-        #[arg(long)]
+        /// Baud rate of the serial line, 300 to 10000000; default: the profile's, else
+        /// 115200.
+        #[arg(long, allow_hyphen_values = true, value_parser = baud)]
         baud: Option<u32>,
         /// Machine profile; default: the built-in simulator's.
         #[arg(long)]
@@ -65,14 +67,21 @@ pub(crate) enum Command {
         /// The executed-path log (appended to).
         #[arg(long)]
         log: PathBuf,
-        /// Give up (with a feed hold) after this many seconds without any progress.
-        #[arg(long, default_value_t = 30.0)]
+        /// Give up (with a feed hold) after this many seconds without any progress, 1 to
+        /// 604800 (a week).
+        #[arg(long, allow_hyphen_values = true, default_value_t = 30.0, value_parser = stall_timeout)]
         stall_timeout: f64,
-        /// Resume a stopped run at this program line (1-based, as a stop reports it), behind
-        /// a preamble that restores units, distance and feed modes, the G92 offset and the
-        /// spindle as the program had them there.
-        #[arg(long)]
+        /// Resume a stopped run at this program line (1-based, as a stop reports it). Inside
+        /// the cut the ring re-enters along the groove first: X clear, C and Z to the line's
+        /// start on the helix, the spindle on, a plunge in X; on a serial line a preamble
+        /// restores units, distance and feed modes and the G92 offset as the program had them.
+        #[arg(long, allow_hyphen_values = true, value_parser = resume_at)]
         resume_at: Option<usize>,
+        /// A grbl-family controller found in alarm before the first line (after a reset
+        /// mid-motion, a limit, a guard) is unlocked with $X instead of refused: say so only
+        /// once the machine has been checked.
+        #[arg(long)]
+        unlock: bool,
     },
     /// Dry-run a job: plan it, start the simulated controller in this process on a
     /// pseudo-terminal, stream the program to it through the same serial code a machine gets,
@@ -94,14 +103,16 @@ pub(crate) enum Command {
         /// Where to write the report (JSON).
         #[arg(long)]
         report: Option<PathBuf>,
-        /// Simulated seconds per wall second; default: as fast as the host allows.
-        #[arg(long)]
+        /// Simulated seconds per wall second, 0.001 to 10000; 0 or left out: as fast as the
+        /// host allows (over Modbus, 100).
+        #[arg(long, allow_hyphen_values = true, value_parser = time_scale)]
         time_scale: Option<f64>,
-        /// The link's baud rate, emulated by the simulator.
-        #[arg(long, default_value_t = 115_200)]
+        /// The link's baud rate, emulated by the simulator, 300 to 10000000.
+        #[arg(long, allow_hyphen_values = true, default_value_t = 115_200, value_parser = baud)]
         baud: u32,
-        /// The simulated controller's receive buffer, bytes (grblHAL 1024, grbl on an AVR 128).
-        #[arg(long, default_value_t = 1024)]
+        /// The simulated controller's receive buffer, bytes (grblHAL 1024, grbl on an AVR
+        /// 128), 128 to 65536.
+        #[arg(long, allow_hyphen_values = true, default_value_t = 1024, value_parser = rx)]
         rx: usize,
         /// How the program goes to the simulated controller: G-code over a serial line, or
         /// segments through the Modbus register map (docs/modbus.md) over TCP or RTU.
@@ -189,22 +200,163 @@ pub(crate) enum SweepTool {
     /// helix axis, around x = −R, as CSV `x,y`.
     Paraboloid {
         /// a, 1/mm (negative).
-        #[arg(long, allow_hyphen_values = true)]
+        #[arg(long, allow_hyphen_values = true, value_parser = negative)]
         a: f64,
         /// b, mm (positive).
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true, value_parser = positive)]
         b: f64,
-        /// Helix radius R, mm.
-        #[arg(long)]
+        /// Helix radius R, mm (positive).
+        #[arg(long, allow_hyphen_values = true, value_parser = positive)]
         radius: f64,
         /// Helix pitch p, mm (0: a circular path).
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true, value_parser = not_negative)]
         pitch: f64,
-        /// Largest distance of the written polyline from the true boundary, mm.
-        #[arg(long, default_value_t = 1e-4)]
+        /// Largest distance of the written polyline from the true boundary, mm, 1e-9 to 1.
+        #[arg(long, allow_hyphen_values = true, default_value_t = 1e-4, value_parser = accuracy)]
         accuracy: f64,
         /// Where to write the CSV.
         #[arg(short, long)]
         output: PathBuf,
     },
+}
+
+// The numbers the command line takes: each checked here, so that clap refuses a wrong one
+// naming the option, before anything is read or run.
+
+/// The largest magnitude a length or a coefficient of the command line may have: far
+/// beyond any machine, small enough that nothing computed from it overflows.
+const LARGEST: f64 = 1e6;
+
+/// A number, which may still be NaN or infinite: each caller's range refuses those.
+fn number(text: &str) -> Result<f64, String> {
+    text.trim()
+        .parse()
+        .map_err(|_| format!("{text:?} is not a number"))
+}
+
+/// A number (finite, then) from `low` to `high`, `what` (" seconds") saying what it counts.
+fn number_in(text: &str, low: f64, high: f64, what: &str) -> Result<f64, String> {
+    let value = number(text)?;
+    if (low..=high).contains(&value) {
+        Ok(value)
+    } else {
+        Err(format!("must be a number from {low} to {high}{what}"))
+    }
+}
+
+/// A whole number from `low` to `high`, `what` (" bytes") saying what it counts.
+fn whole_in<T>(text: &str, low: T, high: T, what: &str) -> Result<T, String>
+where
+    T: std::str::FromStr + PartialOrd + std::fmt::Display,
+{
+    let value: T = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("{text:?} is not a whole number"))?;
+    if value >= low && value <= high {
+        Ok(value)
+    } else {
+        Err(format!("must be a whole number from {low} to {high}{what}"))
+    }
+}
+
+/// `--stall-timeout`: seconds, from one to a week.
+fn stall_timeout(text: &str) -> Result<f64, String> {
+    number_in(text, 1.0, 604_800.0, " seconds (a week)")
+}
+
+/// `--time-scale`: simulated seconds per wall second, 0.001 to 10000; 0: as fast as the
+/// host allows.
+fn time_scale(text: &str) -> Result<f64, String> {
+    let scale = number(text)?;
+    if scale == 0.0 || (1e-3..=1e4).contains(&scale) {
+        Ok(scale)
+    } else {
+        Err(
+            "must be 0 (as fast as the host allows) or a number from 0.001 to 10000 simulated \
+             seconds per wall second"
+                .into(),
+        )
+    }
+}
+
+/// `--baud`: bits per second, 300 to 10 000 000.
+fn baud(text: &str) -> Result<u32, String> {
+    whole_in(text, 300, 10_000_000, " bits per second")
+}
+
+/// `--rx`: a controller's receive buffer, 128 (grbl on an AVR) to 65536 bytes.
+fn rx(text: &str) -> Result<usize, String> {
+    whole_in(text, 128, 65_536, " bytes")
+}
+
+/// `--resume-at`: a program line, counted from 1.
+fn resume_at(text: &str) -> Result<usize, String> {
+    whole_in(text, 1, usize::MAX, "").map_err(|_| "counts program lines from 1".into())
+}
+
+/// A finite number below 0 (and above −10⁶).
+fn negative(text: &str) -> Result<f64, String> {
+    match number(text)? {
+        v if (-LARGEST..0.0).contains(&v) => Ok(v),
+        _ => Err(format!(
+            "must be negative: a number below 0, down to -{LARGEST}"
+        )),
+    }
+}
+
+/// A finite number above 0 (and at most 10⁶).
+fn positive(text: &str) -> Result<f64, String> {
+    match number(text)? {
+        v if v > 0.0 && v <= LARGEST => Ok(v),
+        _ => Err(format!(
+            "must be positive: a number above 0, up to {LARGEST}"
+        )),
+    }
+}
+
+/// A number from 0 to 10⁶.
+fn not_negative(text: &str) -> Result<f64, String> {
+    number_in(text, 0.0, LARGEST, "")
+}
+
+/// `--accuracy`: mm, from the finest the engine can reach to 1.
+fn accuracy(text: &str) -> Result<f64, String> {
+    number_in(text, MIN_ACCURACY, 1.0, " mm")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_are_finite_and_in_range() {
+        for bad in [
+            "nan", "NaN", "inf", "-inf", "1e30", "0", "-1", "0.5", "x", "",
+        ] {
+            assert!(stall_timeout(bad).is_err(), "{bad}");
+        }
+        assert_eq!(stall_timeout("30"), Ok(30.0));
+        for bad in ["nan", "inf", "1e308", "-1", "1e-4", "10001"] {
+            assert!(time_scale(bad).is_err(), "{bad}");
+        }
+        assert_eq!(time_scale("0"), Ok(0.0));
+        assert_eq!(time_scale("200"), Ok(200.0));
+        for bad in ["0", "-1", "299", "1e6", "10000001", "nan"] {
+            assert!(baud(bad).is_err(), "{bad}");
+        }
+        assert_eq!(baud("115200"), Ok(115_200));
+        assert!(rx("0").is_err() && rx("127").is_err() && rx("65537").is_err());
+        assert_eq!((rx("128"), rx("1024")), (Ok(128), Ok(1024)));
+        assert_eq!(resume_at("0").unwrap_err(), "counts program lines from 1");
+        assert_eq!(resume_at("20"), Ok(20));
+        assert!(negative("0.05").unwrap_err().contains("must be negative"));
+        assert!(negative("nan").is_err() && positive("inf").is_err());
+        assert!(positive("0").is_err() && not_negative("-1").is_err());
+        assert_eq!(not_negative("0"), Ok(0.0));
+        for bad in ["0", "1e-10", "nan", "2"] {
+            assert!(accuracy(bad).is_err(), "{bad}");
+        }
+        assert_eq!(accuracy("1e-9"), Ok(1e-9));
+    }
 }

@@ -1,21 +1,25 @@
 //! The `whirl` command line: thin glue over the library. Each subcommand reads its files,
 //! calls the library, prints what came back and writes its outputs; the words it takes are
-//! in [`args`], the terminal's progress bar in [`terminal`].
+//! in [`args`], what it may write and how in [`files`], its printing and the terminal's
+//! progress bar in [`terminal`].
 
 mod args;
 mod files;
+mod interrupt;
 mod terminal;
 
 use anyhow::{Context, Result};
 use args::{Cli, Command, LogCommand, SweepTool};
 use clap::Parser;
+use files::Files;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use terminal::say;
 use whirl::config::job::Job;
 use whirl::config::machine::MachineProfile;
 use whirl::judge::dry_run::{self, DryRunOptions};
 use whirl::log::ExecLog;
-use whirl::transport::{self, Link, Outcome, Posted, RunOptions, TransportKind};
+use whirl::transport::{self, Link, Posted, Resume, RunOptions, TransportKind};
 
 /// Exit code of `whirl verify` and `whirl dry-run` for a program measured beyond Δ.
 const BEYOND_DELTA: u8 = 2;
@@ -30,7 +34,7 @@ fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            terminal::error(&e);
             ExitCode::FAILURE
         }
     }
@@ -56,13 +60,14 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     output,
                 },
         } => {
+            Files::new().output("-o", Some(&output)).check()?;
             let csv = whirl::papers::section::run_paraboloid(a, b, radius, pitch, accuracy)?;
             files::write_all(&[(Some(&output), &csv)])?;
-            println!(
+            say!(
                 "{}: {} points within {accuracy} mm of the section",
                 output.display(),
                 csv.lines().count() - 1
-            );
+            )?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Stream {
@@ -74,16 +79,25 @@ fn run(cli: Cli) -> Result<ExitCode> {
             log,
             stall_timeout,
             resume_at,
+            unlock,
         } => {
+            let files = if input.extension().is_some_and(|e| e == "toml") {
+                Files::new().job(&input)
+            } else {
+                Files::new().input("the program", Some(&input))
+            };
+            files
+                .input("the machine profile (--machine)", machine.as_deref())
+                .log("the log (--log)", Some(&log))
+                .check()?;
             let machine = load_machine(machine.as_deref())?;
             let link = Link::resolve(&machine, transport.map(TransportKind::from), port, baud)?;
-            let resume_at = match resume_at {
-                Some(0) => anyhow::bail!("--resume-at counts lines from 1"),
-                line => line.map(|l| l - 1),
-            };
+            // Counted from 1 on the command line (clap refuses 0), from 0 below.
+            let resume_at = resume_at.map(|line| line - 1);
             let options = RunOptions {
                 stall_timeout: Some(std::time::Duration::from_secs_f64(stall_timeout)),
                 resume_at,
+                unlock,
                 progress: None,
             };
             stream(&input, &machine, &link, options, &log)
@@ -99,6 +113,13 @@ fn run(cli: Cli) -> Result<ExitCode> {
             rx,
             transport,
         } => {
+            Files::new()
+                .output("--report", report.as_deref())
+                .job(&job)
+                .input("the program (--program)", program.as_deref())
+                .input("the machine profile (--machine)", machine.as_deref())
+                .log("the log (--log)", log.as_deref())
+                .check()?;
             let options = DryRunOptions {
                 transport: transport.into(),
                 time_scale: time_scale.filter(|s| *s > 0.0),
@@ -120,9 +141,17 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 LogCommand::Summary { log } => {
                     let read = whirl::log::read(&log)?;
                     let s = whirl::log::Summary::of(&read);
-                    println!("{}", serde_json::to_string_pretty(&s)?);
+                    say!("{}", serde_json::to_string_pretty(&s)?)?;
                 }
                 LogCommand::Plot { log, output, job } => {
+                    let files = match &job {
+                        Some(job) => Files::new().job(job),
+                        None => Files::new(),
+                    };
+                    files
+                        .output("-o", Some(&output))
+                        .input("the log", Some(&log))
+                        .check()?;
                     let read = whirl::log::read(&log)?;
                     let mut plots = whirl::judge::plots::axis_plots(&read);
                     if let Some(job) = job {
@@ -144,6 +173,13 @@ fn run(cli: Cli) -> Result<ExitCode> {
             report,
             svg,
         } => {
+            Files::new()
+                .output("--report", Some(&report))
+                .output("--svg", svg.as_deref())
+                .input("the program", Some(&program))
+                .job(&job)
+                .input("the machine profile (--machine)", machine.as_deref())
+                .check()?;
             let machine = load_machine(machine.as_deref())?;
             let job = Job::load(&job)?;
             let text = std::fs::read_to_string(&program)
@@ -155,7 +191,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 (Some(&report), &json),
                 (svg.as_deref(), &v.svg.clone().unwrap_or_default()),
             ])?;
-            println!(
+            say!(
                 "{}: max overcut {:.5} mm, max undercut {:.5} mm over {} points; Δ {} mm: {}",
                 program.display(),
                 v.max_overcut_mm,
@@ -163,7 +199,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 v.points,
                 v.delta_mm,
                 if v.within_delta { "within" } else { "BEYOND" }
-            );
+            )?;
             Ok(if v.within_delta {
                 ExitCode::SUCCESS
             } else {
@@ -173,7 +209,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
     }
 }
 
-/// `whirl plan`: the program and its report, written only once everything is computed.
+/// `whirl plan`: the program and its report, written only once everything is computed (and
+/// refused before anything is if they cannot be).
 fn plan(
     job: &Path,
     machine: Option<&Path>,
@@ -181,6 +218,12 @@ fn plan(
     report: Option<&Path>,
     verify: bool,
 ) -> Result<ExitCode> {
+    Files::new()
+        .output("-o", Some(output))
+        .output("--report", report)
+        .job(job)
+        .input("the machine profile (--machine)", machine)
+        .check()?;
     let machine = load_machine(machine)?;
     let job = Job::load(job)?;
     let plan = whirl::plan::plan(&job, &machine)
@@ -197,10 +240,13 @@ fn plan(
                 v.delta_mm
             );
         }
-        println!(
+        say!(
             "verified: max overcut {:.5} mm, max undercut {:.5} mm over {} points (Δ {} mm)",
-            v.max_overcut_mm, v.max_undercut_mm, v.points, v.delta_mm
-        );
+            v.max_overcut_mm,
+            v.max_undercut_mm,
+            v.points,
+            v.delta_mm
+        )?;
         verified = Some(v);
     }
     let json = match &verified {
@@ -212,7 +258,7 @@ fn plan(
     };
     files::write_all(&[(Some(output), &plan.text), (report, &json)])?;
     let r = &plan.report;
-    println!(
+    say!(
         "{}: {} segments ({} per period), max error {:.4} mm of Δ {:.4} mm \
          (interpolation {:.4}, scallop {:.4}, cusp {:.4}), cycle {:.1} s",
         output.display(),
@@ -224,7 +270,7 @@ fn plan(
         r.scallop_mm,
         r.cusp_mm,
         r.cycle_time_s
-    );
+    )?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -252,35 +298,43 @@ fn stream(
     let mut log = ExecLog::append(log)?;
     let bar = terminal::progress_bar();
     options.progress = bar.as_ref().map(terminal::Bar::callback);
-    // Nothing presses the buttons yet: the run goes on unattended.
-    let (_, commands) = transport::control();
-    let outcome = runtime()?.block_on(transport::stream(
-        link, &posted, machine, options, commands, &mut log,
-    ));
+    let (control, commands) = transport::control();
+    let runtime = runtime()?;
+    // The handlers go in before the first byte goes out.
+    let interrupts = {
+        let _inside = runtime.enter();
+        interrupt::Interrupts::install().context("cannot install the signal handlers")?
+    };
+    let outcome = runtime.block_on(async {
+        let watching = tokio::spawn(interrupts.watch(control));
+        let outcome = transport::stream(link, &posted, machine, options, commands, &mut log).await;
+        watching.abort();
+        outcome
+    });
     if let Some(bar) = bar {
         bar.finish();
     }
-    let outcome = outcome?;
-    println!("{}", outcome.summary(&name, link));
+    let outcome = match outcome {
+        Ok(outcome) => outcome,
+        Err(error) => anyhow::bail!("{error}{}", resume_hint(error.resume())),
+    };
+    say!("{}", outcome.summary(&name, link))?;
     match outcome.stop() {
         None => Ok(ExitCode::SUCCESS),
-        Some(stop) => anyhow::bail!("{stop}{}", resume_hint(&outcome)),
+        Some(stop) => anyhow::bail!("{stop}{}", resume_hint(outcome.resume())),
     }
 }
 
-/// Where a stopped serial run resumes, in the command line's words.
-fn resume_hint(outcome: &Outcome) -> String {
-    let Outcome::Serial(outcome) = outcome else {
+/// Where a run that did not complete resumes, in the command line's words.
+fn resume_hint(resume: Option<Resume>) -> String {
+    let Some(resume) = resume else {
         return String::new();
     };
-    let Some(resume) = &outcome.resume else {
-        return String::new();
-    };
-    let mut hint = format!("; resume with --resume-at {}", resume.line_index + 1);
+    let mut hint = format!("; resume with --resume-at {}", resume.line + 1);
     if !resume.possibly_executed.is_empty() {
         hint.push_str(&format!(
-            " (lines {} to {} may already have run: check where the machine stands before \
-             resuming)",
+            " (lines {} to {} may already have run: the resume cuts them again along the \
+             groove, which removes nothing more)",
             resume.possibly_executed.start + 1,
             resume.possibly_executed.end
         ));
@@ -331,7 +385,7 @@ fn dry_run(paths: DryRunPaths, mut options: DryRunOptions) -> Result<ExitCode> {
     let r = r?;
     let json = serde_json::to_string_pretty(&r)?;
     files::write_all(&[(paths.report.as_deref(), &json)])?;
-    println!(
+    say!(
         "{}: {} of {} lines acknowledged; {:.1} s on the machine, dry-run in {:.1} s; \
          link {:.1} % busy at {} baud",
         r.job,
@@ -341,34 +395,38 @@ fn dry_run(paths: DryRunPaths, mut options: DryRunOptions) -> Result<ExitCode> {
         r.wall_time_s,
         100.0 * r.link_utilization,
         r.baud
-    );
-    println!(
+    )?;
+    say!(
         "profile error measured by the simulator: overcut {:.4} mm, undercut {:.4} mm \
          over {} of {} points; Δ {} mm",
-        r.max_overcut_mm, r.max_undercut_mm, r.points_measured, r.points, r.delta_mm
-    );
+        r.max_overcut_mm,
+        r.max_undercut_mm,
+        r.points_measured,
+        r.points,
+        r.delta_mm
+    )?;
     for a in &r.alarms {
-        println!(
+        say!(
             "ALARM:{} {}{}",
             a.code,
             a.message,
             a.detail
                 .as_ref()
                 .map_or(String::new(), |d| format!(": {d}"))
-        );
+        )?;
     }
     if let Some(stop) = &r.stop {
-        println!("stopped: {stop}");
+        say!("stopped: {stop}")?;
     }
     let beyond = r.alarms.iter().any(|a| a.code == 64) || r.max_error_mm > r.delta_mm;
     Ok(if r.within_delta {
-        println!("completed within Δ");
+        say!("completed within Δ")?;
         ExitCode::SUCCESS
     } else if beyond {
-        println!("BEYOND Δ");
+        say!("BEYOND Δ")?;
         ExitCode::from(BEYOND_DELTA)
     } else {
-        println!("did not complete");
+        say!("did not complete")?;
         ExitCode::FAILURE
     })
 }

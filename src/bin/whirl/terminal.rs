@@ -1,6 +1,51 @@
-//! A progress bar on a terminal, fed by a run's progress.
+//! What a command shows: its results on standard output ([`say!`]), errors on standard
+//! error ([`error`]), and a progress bar on a terminal, fed by a run's progress.
+//!
+//! A reader that goes away (`whirl dry-run JOB | head -1`, a closed pipe) ends the printing
+//! quietly: whatever is left to print is dropped, no error is said, and the command goes on
+//! to its end, so its exit code is the work's (0 if it succeeded, 2 beyond Δ, 1 if it
+//! failed). A classic Unix filter dies of SIGPIPE instead, a status that would hide whether
+//! a dry run was within Δ. Any other failure to write to standard output (a full disk) is
+//! an error.
 
+use std::io::Write;
+use std::sync::atomic::{AtomicBool, Ordering};
 use whirl::transport::{Progress, ProgressFn};
+
+/// Standard output's reader has gone: nothing more is printed.
+static STDOUT_GONE: AtomicBool = AtomicBool::new(false);
+
+/// Prints a line of results on standard output, as `println!` does, but a closed pipe ends
+/// the printing quietly instead of panicking (see the module's docs); gives an error for any
+/// other failure to write.
+macro_rules! say {
+    ($($arg:tt)*) => {
+        $crate::terminal::say_line(format_args!($($arg)*))
+    };
+}
+pub(crate) use say;
+
+/// [`say!`]'s line.
+pub(crate) fn say_line(line: std::fmt::Arguments) -> anyhow::Result<()> {
+    if STDOUT_GONE.load(Ordering::Relaxed) {
+        return Ok(());
+    }
+    let mut out = std::io::stdout().lock();
+    match writeln!(out, "{line}").and_then(|()| out.flush()) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+            STDOUT_GONE.store(true, Ordering::Relaxed);
+            Ok(())
+        }
+        Err(e) => Err(anyhow::Error::new(e).context("cannot write to standard output")),
+    }
+}
+
+/// Prints `error: …` on standard error; if standard error cannot take it, there is nowhere
+/// left to say so.
+pub(crate) fn error(e: &anyhow::Error) {
+    let _ = writeln!(std::io::stderr(), "error: {e:#}");
+}
 
 /// A progress bar with the time left on a terminal (stderr).
 pub(crate) struct Bar(indicatif::ProgressBar);

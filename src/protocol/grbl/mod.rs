@@ -46,7 +46,7 @@ pub(crate) mod fake;
 
 pub use codes::{alarm_message, error_message};
 pub use response::{parse_response, BuildOptions, LineBuffer, MachineState, Response, Status};
-pub use resume::{resume_preamble, ModalState, ResumeError};
+pub use resume::{reentry_preamble, resume_preamble, ModalState, ResumeError};
 pub use streamer::{
     Aux, Event, LineRef, Progress, ResumeBasis, ResumePoint, StopReason, Streamer, StreamerConfig,
     StreamerError,

@@ -38,6 +38,7 @@ use thiserror::Error;
 
 use crate::post::gcode::format::format_number;
 use crate::post::gcode::parse::{parse_line, GCode, MCode, ParseError, ParsedLine, WordKind};
+use crate::program::Move;
 
 /// Millimetres per inch (grbl converts G20 feeds and lengths with it at parse time).
 const MM_PER_INCH: f64 = 25.4;
@@ -217,6 +218,14 @@ pub enum ResumeError {
         /// Why not.
         why: &'static str,
     },
+    /// A move that has no place in an approach (a linked move, a comment).
+    #[error(
+        "the approach to the resume line holds {what}, which is no rapid, feed or spindle move"
+    )]
+    ApproachMove {
+        /// The move.
+        what: String,
+    },
     /// A value the preamble must write needs more digits than the controller reads.
     #[error("{word} needs more than {MAX_NUMBER_DIGITS} digits, which grbl-family controllers do not read")]
     TooManyDigits {
@@ -375,13 +384,90 @@ pub fn resume_preamble<S: AsRef<str>>(
     spin_up_dwell_s: f64,
 ) -> Result<Vec<String>, ResumeError> {
     let state = ModalState::replay(lines, line_index)?;
-    let mut preamble = Vec::new();
-    match state.c_offset {
-        COffset::Untouched => {}
-        COffset::Cleared => preamble.push("G92.1".to_owned()),
-        COffset::Renamed { c } => preamble.push(format!("G21 G92 {}", word('C', c)?)),
-    }
+    let mut preamble = offset_lines(&state)?;
+    preamble.push(modal_line(&state, lines, line_index)?);
+    preamble.extend(spindle_lines(&state, spin_up_dwell_s)?);
+    Ok(preamble)
+}
 
+/// The preamble of a resume inside the cut, which re-enters along the groove
+/// ([`crate::program::reentry`]): as [`resume_preamble`], with the `approach` moves written
+/// between the C offset and the modal line, in millimetres, absolute, units per minute,
+/// and in the program's frame at `line_index` (X as a diameter where the program, or with
+/// `x_diameter` the machine, reads it so; C renamed as the program's G92 renamed it). The
+/// modal line after them puts back every mode the program is in there.
+pub fn reentry_preamble<S: AsRef<str>>(
+    lines: &[S],
+    line_index: usize,
+    approach: &[Move],
+    x_diameter: bool,
+    spin_up_dwell_s: f64,
+) -> Result<Vec<String>, ResumeError> {
+    let state = ModalState::replay(lines, line_index)?;
+    let mut preamble = offset_lines(&state)?;
+    let x_scale = match state.lathe {
+        Some(LatheMode::Diameter) => 2.0,
+        Some(LatheMode::Radius) => 1.0,
+        None if x_diameter => 2.0,
+        None => 1.0,
+    };
+    let c_shift = state.c_shift.unwrap_or(0.0);
+    let mut modes = "G21 G90 G94 ";
+    for m in approach {
+        let mut text = std::mem::take(&mut modes).to_owned();
+        let axes =
+            |x: Option<f64>, z: Option<f64>, c: Option<f64>| -> Result<String, ResumeError> {
+                let words = [
+                    x.map(|x| word('X', x * x_scale)).transpose()?,
+                    z.map(|z| word('Z', z)).transpose()?,
+                    c.map(|c| word('C', c - c_shift)).transpose()?,
+                ];
+                Ok(words.into_iter().flatten().collect::<Vec<_>>().join(" "))
+            };
+        match *m {
+            Move::Rapid { x, z, c } => text.push_str(&format!("G0 {}", axes(x, z, c)?)),
+            Move::Feed { x, z, c, feed } => {
+                text.push_str(&format!("G1 {} {}", axes(x, z, c)?, word('F', feed)?));
+            }
+            Move::SpindleOn { rpm } => {
+                text.push_str(&format!("M3 {}", word('S', rpm)?));
+                if spin_up_dwell_s > 0.0 && spin_up_dwell_s.is_finite() {
+                    preamble.push(text);
+                    text = format!("G4 {}", word('P', spin_up_dwell_s)?);
+                }
+            }
+            Move::SpindleOff => text.push_str("M5"),
+            Move::Linked { .. } | Move::Comment(_) => {
+                return Err(ResumeError::ApproachMove {
+                    what: format!("{m:?}"),
+                })
+            }
+        }
+        preamble.push(text.trim_end().to_owned());
+    }
+    preamble.push(modal_line(&state, lines, line_index)?);
+    // The approach turned the spindle on where the program has it on.
+    if !approach.iter().any(|m| matches!(m, Move::SpindleOn { .. })) {
+        preamble.extend(spindle_lines(&state, spin_up_dwell_s)?);
+    }
+    Ok(preamble)
+}
+
+/// `G92.1`, or `G21 G92 C…`, if the program cleared or set the C offset before the line.
+fn offset_lines(state: &ModalState) -> Result<Vec<String>, ResumeError> {
+    Ok(match state.c_offset {
+        COffset::Untouched => Vec::new(),
+        COffset::Cleared => vec!["G92.1".to_owned()],
+        COffset::Renamed { c } => vec![format!("G21 G92 {}", word('C', c)?)],
+    })
+}
+
+/// The one line of the program's modes at `line_index`; see [`resume_preamble`].
+fn modal_line<S: AsRef<str>>(
+    state: &ModalState,
+    lines: &[S],
+    line_index: usize,
+) -> Result<String, ResumeError> {
     let mut modal = vec![
         match state.units {
             Units::Millimetres => "G21",
@@ -436,8 +522,12 @@ pub fn resume_preamble<S: AsRef<str>>(
         modal.push(' ');
         modal.push_str(&word('F', feed / state.unit_mm())?);
     }
-    preamble.push(modal);
+    Ok(modal)
+}
 
+/// `M3 S…` and the spin-up dwell, if the spindle is on; see [`resume_preamble`].
+fn spindle_lines(state: &ModalState, spin_up_dwell_s: f64) -> Result<Vec<String>, ResumeError> {
+    let mut preamble = Vec::new();
     if state.spindle_on {
         match state.spindle_rpm {
             Some(rpm) => preamble.push(format!("M3 {}", word('S', rpm)?)),
@@ -522,6 +612,58 @@ G94
 G0 X30
 M5
 M2";
+
+    #[test]
+    fn a_reentry_approaches_in_the_programs_frame_then_restores_its_modes() {
+        let program = lines(POSTED);
+        // The neutral program's frame is continuous: line index 6 ends at C 270 (C90 after
+        // `G92 C0` at 180), Z -1.5.
+        let approach = [
+            Move::Rapid {
+                x: Some(20.0),
+                z: None,
+                c: None,
+            },
+            Move::Rapid {
+                x: None,
+                z: Some(-1.5),
+                c: Some(270.0),
+            },
+            Move::SpindleOn { rpm: 3000.0 },
+            Move::Feed {
+                x: Some(10.0),
+                z: None,
+                c: None,
+                feed: 50.0,
+            },
+        ];
+        assert_eq!(
+            reentry_preamble(&program, 7, &approach, false, 0.0).unwrap(),
+            vec![
+                "G21 G92 C90",
+                "G21 G90 G94 G0 X20",
+                "G0 Z-1.5 C90",
+                "M3 S3000",
+                "G1 X10 F50",
+                "G21 G90 G93",
+            ]
+        );
+        // A machine that reads X as a diameter gets twice the radius; a dwell follows M3.
+        let preamble = reentry_preamble(&program, 7, &approach, true, 2.0).unwrap();
+        assert_eq!(preamble[1], "G21 G90 G94 G0 X40");
+        assert_eq!(preamble[3..6], ["M3 S3000", "G4 P2", "G1 X20 F50"]);
+        // Only rapids, feeds and the spindle make an approach.
+        let linked = [Move::Linked {
+            x: 1.0,
+            z: 1.0,
+            c: 1.0,
+            minutes: 1.0,
+        }];
+        assert!(matches!(
+            reentry_preamble(&program, 7, &linked, false, 0.0),
+            Err(ResumeError::ApproachMove { .. })
+        ));
+    }
 
     #[test]
     fn before_any_line_the_preamble_is_grbls_defaults() {

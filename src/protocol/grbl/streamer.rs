@@ -87,6 +87,25 @@
 //! [`Streamer::resume_from`] then streams the program from that line behind a preamble
 //! that restores its modes ([`super::resume`]).
 //!
+//! # Interrupting
+//!
+//! [`Streamer::interrupt`] is how a bridge that must go away (a signal, a lost console)
+//! leaves the machine: a feed hold, no line sent after it, and the stream stopped with
+//! [`StopReason::Interrupted`]. The machine decelerates along the path and holds; the
+//! transport keeps polling until [`Streamer::is_standing`] (a report of `Hold:0`, `Idle`
+//! or `Alarm` taken after the hold), so the run ends with the machine at rest and the
+//! resume point read from the report that shows it there (`Ln:` of the held block).
+//!
+//! # The state before the first line
+//!
+//! With [`StreamerConfig::check_state`] the streamer asks `?` before anything else and
+//! reads the answer: a controller left held by an interrupted run gets a soft reset (at
+//! rest, grbl keeps its position and raises no alarm) and is asked again; one in alarm
+//! (locked out: every line would come back `error:9`) stops the stream with
+//! [`StopReason::AlarmAtStart`], or with [`StreamerConfig::unlock`] gets `$X` first; one
+//! running, jogging or homing stops it with [`StopReason::Busy`]. Nothing but `?` and the
+//! reset goes out before the answer.
+//!
 //! # When the motion is done
 //!
 //! [`Event::Done`] says every program line was acknowledged, not that it ran: up to a
@@ -140,6 +159,8 @@ pub mod realtime {
 enum Phase {
     /// Waiting for the banner before sending anything.
     AwaitBanner,
+    /// `?` sent before the first line; waiting for the state it reports.
+    CheckState,
     /// `$I` queued or in flight; no other line goes out until it is answered.
     Query,
     /// Sending the preamble and the program.
@@ -223,6 +244,14 @@ pub struct Streamer {
     motion_done: bool,
     /// [`Streamer::feed_hold`] was called and [`Streamer::resume`] not since.
     hold_requested: bool,
+    /// [`Streamer::interrupt`] was called: waiting for a report of the machine at rest.
+    interrupted: bool,
+    /// A report since [`Streamer::interrupt`] showed the machine at rest.
+    standing: bool,
+    /// The soft reset of a controller found held before the first line has been sent.
+    reset_at_start: bool,
+    /// ... and its banner not yet read: reports until then answer a `?` sent before it.
+    reset_pending: bool,
     last_poll: Option<Duration>,
     last_status: Option<Status>,
     last_wco: Option<Vec<f64>>,
@@ -287,13 +316,6 @@ impl Streamer {
         for (line, text) in preamble_refs.chain(program_refs) {
             check_line(line, text, budget)?;
         }
-        let phase = if config.wait_for_banner {
-            Phase::AwaitBanner
-        } else if config.query_build_info {
-            Phase::Query
-        } else {
-            Phase::Streaming
-        };
         let mut aux_queue = VecDeque::new();
         if config.query_build_info {
             aux_queue.push_back(Aux::BuildInfo);
@@ -304,7 +326,7 @@ impl Streamer {
             preamble,
             rx_size: config.rx_size,
             planner_blocks: None,
-            phase,
+            phase: Phase::AwaitBanner,
             aux_queue,
             next_preamble: 0,
             next_line: start,
@@ -329,13 +351,40 @@ impl Streamer {
             idle_reports: 0,
             motion_done: false,
             hold_requested: false,
+            interrupted: false,
+            standing: false,
+            reset_at_start: false,
+            reset_pending: false,
             last_poll: None,
             last_status: None,
             last_wco: None,
             config,
         };
+        if !streamer.config.wait_for_banner {
+            streamer.after_banner();
+        }
         streamer.advance();
         Ok(streamer)
+    }
+
+    /// The phase once the controller is known to be listening: the state check, or the
+    /// streamer's own lines (`$I`), or the program.
+    fn after_banner(&mut self) {
+        if self.config.check_state {
+            self.phase = Phase::CheckState;
+            self.realtime.push(realtime::STATUS);
+        } else {
+            self.begin();
+        }
+    }
+
+    /// Go on to the streamer's own lines, then the program.
+    fn begin(&mut self) {
+        self.phase = if self.aux_queue.is_empty() {
+            Phase::Streaming
+        } else {
+            Phase::Query
+        };
     }
 
     /// Takes bytes read from the controller: any amount, split anywhere.
@@ -414,6 +463,32 @@ impl Streamer {
         self.stop(StopReason::SoftReset);
     }
 
+    /// Hold and end the stream (see [the module docs](self#interrupting)): a feed hold now,
+    /// no line after it, and [`Event::Stopped`] with [`StopReason::Interrupted`]; the
+    /// transport then waits for [`Streamer::is_standing`]. After an alarm or a reset the
+    /// machine is stopped already, and only the hold goes out.
+    pub fn interrupt(&mut self, reason: impl Into<String>) {
+        self.feed_hold();
+        self.interrupted = true;
+        self.standing = false;
+        if self.phase != Phase::Stopped {
+            self.phase = Phase::Stopped;
+            self.pending = None;
+            self.aux_queue.clear();
+            let reason = StopReason::Interrupted {
+                reason: reason.into(),
+            };
+            self.stop_reason = Some(reason.clone());
+            self.events.push_back(Event::Stopped { reason });
+        }
+    }
+
+    /// After [`Streamer::interrupt`]: a status report since showed the machine at rest
+    /// (`Hold:0`, the hold complete; `Idle`; or `Alarm`, stopped by the controller).
+    pub fn is_standing(&self) -> bool {
+        self.interrupted && self.standing
+    }
+
     /// The next event, oldest first.
     pub fn next_event(&mut self) -> Option<Event> {
         self.events.pop_front()
@@ -474,11 +549,40 @@ impl Streamer {
             }
             _ => (self.known_executed, self.known_basis),
         };
+        // Held after an interrupt, in the block the last report names: the lines after it
+        // are in the planner, not run; that block may be part done.
+        let held_in = self.is_standing()
+            && self.executing == Some(line_index)
+            && self
+                .last_status
+                .as_ref()
+                .is_some_and(|status| status.state == MachineState::Hold);
+        let possibly_end = if held_in {
+            line_index + 1
+        } else {
+            self.ok_end.max(line_index)
+        };
         Some(ResumePoint {
             line_index,
             basis,
-            possibly_executed: line_index..self.ok_end.max(line_index),
+            possibly_executed: line_index..possibly_end,
             executed_after_failure: self.executed_after_failure.clone(),
+        })
+    }
+
+    /// Where to resume if the stream ended now, whatever its phase: after a stop,
+    /// [`Streamer::resume_point`]; otherwise (the link lost mid-stream: the controller goes
+    /// on with every line it has received) the first line not known to have executed, with
+    /// every line sent from there on as possibly executed.
+    pub fn resume_point_now(&self) -> ResumePoint {
+        self.resume_point().unwrap_or_else(|| {
+            let line_index = self.known_executed;
+            ResumePoint {
+                line_index,
+                basis: self.known_basis,
+                possibly_executed: line_index..self.next_line.max(line_index),
+                executed_after_failure: self.executed_after_failure.clone(),
+            }
         })
     }
 
@@ -540,6 +644,7 @@ impl Streamer {
             LineRef::Aux(Aux::Preamble(i)) => self.preamble.get(i).map_or("", String::as_str),
             LineRef::Aux(Aux::BuildInfo) => "$I",
             LineRef::Aux(Aux::ClearError) => "",
+            LineRef::Aux(Aux::Unlock) => "$X",
         }
     }
 
@@ -555,7 +660,7 @@ impl Streamer {
             } else {
                 None
             }),
-            Phase::AwaitBanner | Phase::Stopped | Phase::Done => None,
+            Phase::AwaitBanner | Phase::CheckState | Phase::Stopped | Phase::Done => None,
         }
     }
 
@@ -617,7 +722,8 @@ impl Streamer {
                         }
                         self.phase = Phase::Streaming;
                     }
-                    (Aux::Preamble(_), Some(code)) => self.fail(entry.line, code),
+                    (Aux::Preamble(_) | Aux::Unlock, Some(code)) => self.fail(entry.line, code),
+                    (Aux::Unlock, None) if self.phase == Phase::Query => self.begin(),
                     _ => {}
                 }
             }
@@ -643,11 +749,11 @@ impl Streamer {
             Phase::Streaming | Phase::Query => true,
             // Draining for a too-long line: this earlier line is the real failure.
             Phase::Draining => self.failure.is_none(),
-            Phase::AwaitBanner | Phase::Stopped | Phase::Done => false,
+            Phase::AwaitBanner | Phase::CheckState | Phase::Stopped | Phase::Done => false,
         };
         let consequence = match self.phase {
             // After an alarm or reset, refusals (`error:9`) are its consequence.
-            Phase::AwaitBanner | Phase::Stopped | Phase::Done => true,
+            Phase::AwaitBanner | Phase::CheckState | Phase::Stopped | Phase::Done => true,
             _ if first => false,
             // grblHAL's sticky error repeats the failure's code; another code is a failure
             // of the line's own (grbl without a sticky error).
@@ -718,11 +824,16 @@ impl Streamer {
     fn on_banner(&mut self, text: String) {
         if self.phase == Phase::AwaitBanner {
             self.events.push_back(Event::Banner(text));
-            self.phase = if self.aux_queue.is_empty() {
-                Phase::Streaming
-            } else {
-                Phase::Query
-            };
+            self.after_banner();
+            return;
+        }
+        if self.phase == Phase::CheckState {
+            // The answer to the reset of a held controller, or a reset of its own: ask again.
+            self.reset_pending = false;
+            self.events.push_back(Event::Banner(text));
+            if !self.realtime.contains(&realtime::STATUS) {
+                self.realtime.push(realtime::STATUS);
+            }
             return;
         }
         if !self.lines_sent && !self.reset_requested {
@@ -766,6 +877,16 @@ impl Streamer {
     }
 
     fn on_status(&mut self, status: Status) {
+        if self.phase == Phase::CheckState && !self.reset_pending {
+            self.on_start_state(&status.state);
+        }
+        if self.interrupted {
+            self.standing = match status.state {
+                MachineState::Hold => status.substate == Some(0),
+                MachineState::Idle | MachineState::Alarm => true,
+                _ => false,
+            };
+        }
         if let Some(free) = status.buffer.map(|b| b.planner_blocks_free) {
             self.max_blocks_free = Some(self.max_blocks_free.map_or(free, |m| m.max(free)));
         }
@@ -802,6 +923,26 @@ impl Streamer {
         self.events.push_back(Event::Status(status));
         if motion_done {
             self.events.push_back(Event::MotionDone);
+        }
+    }
+
+    /// The state reported before the first line; see [the module docs](self#the-state-before-the-first-line).
+    fn on_start_state(&mut self, state: &MachineState) {
+        match state {
+            MachineState::Idle | MachineState::Check => self.begin(),
+            MachineState::Hold if !self.reset_at_start => {
+                self.reset_at_start = true;
+                self.reset_pending = true;
+                self.realtime.push(realtime::SOFT_RESET);
+            }
+            MachineState::Alarm if self.config.unlock => {
+                self.aux_queue.push_front(Aux::Unlock);
+                self.begin();
+            }
+            MachineState::Alarm => self.stop(StopReason::AlarmAtStart),
+            other => self.stop(StopReason::Busy {
+                state: busy_state(other),
+            }),
         }
     }
 
@@ -845,6 +986,22 @@ impl Streamer {
             _ => {}
         }
     }
+}
+
+/// A busy state in words, for [`StopReason::Busy`].
+fn busy_state(state: &MachineState) -> String {
+    match state {
+        MachineState::Run => "running",
+        MachineState::Jog => "jogging",
+        MachineState::Home => "homing",
+        MachineState::Hold => "still held after a soft reset",
+        MachineState::Door => "held by an open safety door",
+        MachineState::Sleep => "asleep",
+        MachineState::Tool => "waiting for a tool change",
+        MachineState::Other(name) => name,
+        MachineState::Idle | MachineState::Alarm | MachineState::Check => "ready",
+    }
+    .to_owned()
 }
 
 /// The N number of a line (`N120 G1 …`), if its first word is one.

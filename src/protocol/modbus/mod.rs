@@ -45,6 +45,35 @@
 //! an exception 04 (the controller refused a slot at the `HEAD` write), once the status
 //! read after it says which alarm. Other exceptions, malformed answers, repeated timeouts
 //! and a ring flushed under the stream end it with [`WriterEvent::Failed`].
+//!
+//! **Starting on a held controller.** A run that stopped leaves the controller held on the
+//! path (below). The next run (a resume, re-entering along the groove) flushes that ring
+//! with the same `ABORT` every start writes, which the map allows in any state, and
+//! streams. A controller that is running (another program) or in alarm is refused before
+//! anything is written.
+//!
+//! **Stopping.** [`RingWriter::stop`] ends the stream with the machine held where it is,
+//! for an interrupted bridge: no more slots or `HEAD` writes, a `HOLD` edge (the bit
+//! written 0 first, so that it rises whatever another client left in `CONTROL`), status
+//! reads until the state is held or idle and the position reads the same twice (held also
+//! covers the slowing down), then `CONTROL` = 0: `RUN` cleared, so the controller takes
+//! nothing more and its watchdog, disarmed, raises no alarm once the bridge is gone
+//! ([`WriterEvent::Stopped`]). The wait for the stand has its limit,
+//! [`WriterOptions::stand_timeout`]; past it the stream fails ([`WriterError::NotHeld`])
+//! with `RUN` left set, so that the watchdog stops the machine once the bridge stops
+//! feeding it. Done instead (everything had been published and executed) is
+//! [`WriterEvent::Done`]: nothing is left to resume.
+//!
+//! **Stalls.** With [`WriterOptions::stall_timeout`], a controller that shows nothing new
+//! for that long (no segment published, and `STATE`, `TAIL`, `EXECUTED_SEQ` and the
+//! position as they were) is stopped as above, after [`WriterEvent::Stalled`]. A hold
+//! another client or the controller made counts toward it; the caller's own
+//! [`RingWriter::hold`] does not, until its [`RingWriter::resume`].
+//!
+//! **Where the controller is.** [`RingWriter::executed`] counts the segments the
+//! controller reports executed (`EXECUTED_SEQ` since the start's flush), and
+//! [`RingWriter::taken`] those it has taken into its motion queue (`TAIL`), which may have
+//! run in part: a stopped run resumes at the first segment not executed.
 
 pub mod map;
 
@@ -151,6 +180,12 @@ pub struct WriterOptions {
     pub poll_interval: Duration,
     /// How many times a request is re-sent after timeouts before the stream fails.
     pub max_retries: u32,
+    /// Stop (see the module docs) when the controller shows nothing new for this long;
+    /// `None` waits.
+    pub stall_timeout: Option<Duration>,
+    /// How long a stop waits for the status to read held or idle after it began: the
+    /// machine's time to stop from full speed, and a margin.
+    pub stand_timeout: Duration,
 }
 
 impl Default for WriterOptions {
@@ -159,6 +194,8 @@ impl Default for WriterOptions {
             first_sequence: 1,
             poll_interval: Duration::from_millis(50),
             max_retries: 3,
+            stall_timeout: None,
+            stand_timeout: Duration::from_secs(10),
         }
     }
 }
@@ -184,6 +221,15 @@ pub enum WriterEvent {
     /// The caller's abort was written: the controller stops and flushes its ring; the
     /// stream is over.
     Aborted,
+    /// The controller showed nothing new for [`WriterOptions::stall_timeout`]: the writer
+    /// stops the stream.
+    Stalled {
+        /// How long nothing changed.
+        waited: Duration,
+    },
+    /// A stop is complete: the controller reads held or idle, `RUN` is cleared; the stream
+    /// is over.
+    Stopped,
     /// The stream cannot go on.
     Failed(WriterError),
 }
@@ -200,9 +246,24 @@ pub enum WriterError {
     /// The program against the controller's segment rate.
     #[error(transparent)]
     Segments(#[from] SegmentError),
-    /// The controller was not idle or done when the stream began.
-    #[error("the controller is {:?}, not idle or done{}", .0.state, .0.alarm.map(|a| format!(" ({a})")).unwrap_or_default())]
+    /// The controller was not idle, held or done when the stream began; nothing was
+    /// written.
+    #[error(
+        "the controller is {}, not idle, held or done; nothing was written",
+        not_ready(.0)
+    )]
     NotReady(Status),
+    /// A stop's `HOLD` edge was written, but the status did not read held or idle in time.
+    #[error(
+        "the controller did not stand within {waited:?} of the stop's HOLD edge (state \
+         {state:?}); RUN is left set, so that its watchdog stops it once the bridge is gone"
+    )]
+    NotHeld {
+        /// How long the writer waited.
+        waited: Duration,
+        /// The state it read last.
+        state: State,
+    },
     /// The controller answered with an exception.
     #[error("{request}: {exception}")]
     Exception {
@@ -240,6 +301,15 @@ pub enum WriterError {
         /// What it reads.
         read: u16,
     },
+}
+
+/// A refused start's state, in words.
+fn not_ready(status: &Status) -> String {
+    match (status.state, status.alarm) {
+        (_, Some(alarm)) => format!("in {alarm}"),
+        (State::Running, None) => "running (another program is under way)".into(),
+        (state, None) => format!("{state:?}"),
+    }
 }
 
 /// What a request is for, to read its answer.
@@ -280,7 +350,26 @@ enum Phase {
     ClearControl,
     Abort,
     Stream,
+    /// A stop under way (see the module docs), begun at `since`.
+    Stopping {
+        since: Duration,
+    },
     Finished,
+}
+
+/// What the writer compares between status reads to tell that the controller did
+/// something: its state, `TAIL`, `EXECUTED_SEQ` and position.
+type Seen = (State, u16, u32, i32, i32, i64);
+
+fn seen(status: &Status) -> Seen {
+    (
+        status.state,
+        status.tail,
+        status.executed,
+        status.x,
+        status.z,
+        status.c,
+    )
 }
 
 /// One program streamed through the ring (see the module docs).
@@ -305,6 +394,15 @@ pub struct RingWriter {
     end: bool,
     /// An exception 04 came; the next status read says why.
     refused: Option<Request>,
+    /// `EXECUTED_SEQ` as last read since the start's flush.
+    executed: u32,
+    /// The caller's hold is on (no resume since): the stall clock does not run.
+    caller_held: bool,
+    /// When the controller last showed something new, and what it showed.
+    progressed: Duration,
+    last_seen: Option<Seen>,
+    /// A stop's `CONTROL` = 0 write, once the controller stands, is under way.
+    standing: bool,
     /// The caller's commands, as control words still to write: each edge followed by the
     /// levels alone, so that the next command is a new edge.
     commands: VecDeque<u16>,
@@ -335,6 +433,11 @@ impl RingWriter {
             run: false,
             end: false,
             refused: None,
+            executed: 0,
+            caller_held: false,
+            progressed: Duration::ZERO,
+            last_seen: None,
+            standing: false,
             commands: VecDeque::new(),
             next_status: Duration::ZERO,
             next_watchdog: Duration::ZERO,
@@ -347,6 +450,7 @@ impl RingWriter {
     /// status polls and watchdog writes apart by it).
     pub fn poll(&mut self, now: Duration) -> Option<Request> {
         self.now = now;
+        self.check_clocks(now);
         if self.phase == Phase::Finished {
             return None;
         }
@@ -386,7 +490,9 @@ impl RingWriter {
                 o.send = Send::NotBefore(self.now + self.options.poll_interval);
                 self.outstanding = Some(o);
             }
-            Err(Exception::ServerDeviceFailure) if self.phase == Phase::Stream => {
+            Err(Exception::ServerDeviceFailure)
+                if matches!(self.phase, Phase::Stream | Phase::Stopping { .. }) =>
+            {
                 // A refused slot (or an alarm): the status says which.
                 self.refused = Some(o.request);
             }
@@ -418,21 +524,108 @@ impl RingWriter {
     }
 
     /// Feed hold (`HOLD`): the controller stops along the path and holds its position;
-    /// slots keep filling the ring. Sent ahead of any slot.
+    /// slots keep filling the ring. Sent ahead of any slot. The stall clock stops until
+    /// [`RingWriter::resume`].
     pub fn hold(&mut self) {
+        self.caller_held = true;
         self.command(control::HOLD);
     }
 
-    /// Cycle start after a hold (`RESUME`).
+    /// Cycle start after a hold (`RESUME`); the stall clock starts again from now.
     pub fn resume(&mut self) {
+        self.caller_held = false;
+        self.progressed = self.now;
         self.command(control::RESUME);
+    }
+
+    /// Ends the stream with the machine held where it is (see the module docs): once the
+    /// controller stands, [`WriterEvent::Stopped`]. Before streaming began, it ends at
+    /// once: nothing was sent that moves the machine.
+    pub fn stop(&mut self) {
+        match self.phase {
+            Phase::Stream => self.begin_stop(),
+            Phase::Stopping { .. } | Phase::Finished => {}
+            _ => {
+                self.events.push_back(WriterEvent::Stopped);
+                self.outstanding = None;
+                self.phase = Phase::Finished;
+            }
+        }
+    }
+
+    /// Segments the controller reports executed (`EXECUTED_SEQ`), counted from the first.
+    pub fn executed(&self) -> usize {
+        if self.executed == 0 {
+            return 0;
+        }
+        // Sequence numbers run 1 ..= u32::MAX, so their offsets count modulo u32::MAX.
+        let span = u64::from(u32::MAX);
+        let offset =
+            (u64::from(self.executed) + span - u64::from(self.options.first_sequence)) % span;
+        (offset as usize + 1).min(self.published)
+    }
+
+    /// Segments the controller has taken from the ring (`TAIL` past them): executed, being
+    /// executed, or queued for its motion.
+    pub fn taken(&self) -> usize {
+        let Some(ident) = self.ident else {
+            return 0;
+        };
+        let n = ident.slots;
+        let in_ring = (self.head + n - self.tail) % n;
+        self.published - usize::from(in_ring)
+    }
+
+    /// The stall's and the stand's clocks, at `now`.
+    fn check_clocks(&mut self, now: Duration) {
+        match self.phase {
+            Phase::Stream if !self.caller_held => {
+                let Some(limit) = self.options.stall_timeout else {
+                    return;
+                };
+                let waited = now.saturating_sub(self.progressed);
+                if waited >= limit {
+                    self.events.push_back(WriterEvent::Stalled { waited });
+                    self.begin_stop();
+                }
+            }
+            Phase::Stopping { since } if !self.standing => {
+                let waited = now.saturating_sub(since);
+                if waited >= self.options.stand_timeout {
+                    let state = self.last_seen.map_or(State::Running, |s| s.0);
+                    self.fail(WriterError::NotHeld { waited, state });
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// Stops publishing and writes the `HOLD` edge: the bit cleared, then set.
+    fn begin_stop(&mut self) {
+        self.phase = Phase::Stopping { since: self.now };
+        // A request waiting to be sent again is dropped: a slot or HEAD the stop no longer
+        // publishes, a status or watchdog the stop writes anew, a command the stop
+        // supersedes. One awaiting its answer keeps it.
+        if self
+            .outstanding
+            .as_ref()
+            .is_some_and(|o| o.send != Send::Sent)
+        {
+            self.outstanding = None;
+        }
+        self.commands.clear();
+        self.commands.extend([0, control::HOLD]);
     }
 
     /// Stop and flush the ring (`ABORT`); once the controller has the write, the stream
     /// ends with [`WriterEvent::Aborted`]. Before streaming began, it ends at once: nothing
-    /// was sent that moves the machine.
+    /// was sent that moves the machine. During a stop, it goes ahead of what the stop
+    /// still had to write.
     pub fn abort(&mut self) {
-        if matches!(self.phase, Phase::Stream) {
+        if matches!(self.phase, Phase::Stopping { .. }) {
+            self.commands.clear();
+            self.command(control::ABORT);
+        } else if matches!(self.phase, Phase::Stream) {
             self.command(control::ABORT);
         } else if self.phase != Phase::Finished {
             self.events.push_back(WriterEvent::Aborted);
@@ -477,6 +670,7 @@ impl RingWriter {
             Phase::ClearControl => Some(control_write(0)),
             Phase::Abort => Some(control_write(control::ABORT)),
             Phase::Stream => self.stream_request(now),
+            Phase::Stopping { .. } => self.stop_request(now),
             Phase::Finished => None,
         }
     }
@@ -551,6 +745,44 @@ impl RingWriter {
         None
     }
 
+    /// What a stop writes: its edges, the watchdog (the controller still depends on the
+    /// bridge until `RUN` is cleared), status reads, and `CONTROL` = 0 once it stands.
+    fn stop_request(&mut self, now: Duration) -> Option<(Request, Purpose)> {
+        let ident = self.ident?;
+        let status = (
+            Request::ReadHolding {
+                address: reg::STATE,
+                count: reg::STATUS_LEN,
+            },
+            Purpose::Status,
+        );
+        if self.refused.is_some() {
+            return Some(status);
+        }
+        if let Some(edge) = self.commands.pop_front() {
+            return Some(control_write(self.levels() | edge));
+        }
+        if self.standing {
+            return Some(control_write(0));
+        }
+        if self.run && !self.end && now >= self.next_watchdog {
+            self.watchdog = self.watchdog.wrapping_add(1);
+            self.next_watchdog = now + ident.watchdog_timeout / 4;
+            return Some((
+                Request::WriteSingle {
+                    address: reg::WATCHDOG,
+                    value: self.watchdog,
+                },
+                Purpose::Watchdog,
+            ));
+        }
+        if now >= self.next_status {
+            self.next_status = now + self.options.poll_interval;
+            return Some(status);
+        }
+        None
+    }
+
     fn answered(&mut self, o: Outstanding, response: Response) {
         let fits = match (&o.request, &response) {
             (Request::ReadHolding { count, .. }, Response::ReadHolding(values)) => {
@@ -582,7 +814,7 @@ impl RingWriter {
         match o.purpose {
             Purpose::Identify => self.identified(&registers),
             Purpose::Inspect => match self.decode_status(&registers) {
-                Some(status) if matches!(status.state, State::Idle | State::Done) => {
+                Some(status) if matches!(status.state, State::Idle | State::Done | State::Held) => {
                     self.events.push_back(WriterEvent::Status(status));
                     self.phase = Phase::ClearControl;
                 }
@@ -597,13 +829,19 @@ impl RingWriter {
             Purpose::Control(value) => match self.phase {
                 Phase::ClearControl => self.phase = Phase::Abort,
                 Phase::Abort => {
-                    // At rest, the flush is complete when the write is answered.
+                    // At rest, the flush is complete when the write is answered (moving,
+                    // HEAD writes are refused with 06 until it is, and sent again).
                     self.head = 0;
                     self.tail = 0;
                     self.phase = Phase::Stream;
+                    self.progressed = self.now;
                 }
                 _ if value & control::ABORT != 0 => {
                     self.events.push_back(WriterEvent::Aborted);
+                    self.phase = Phase::Finished;
+                }
+                Phase::Stopping { .. } if self.standing => {
+                    self.events.push_back(WriterEvent::Stopped);
                     self.phase = Phase::Finished;
                 }
                 _ => {
@@ -620,6 +858,7 @@ impl RingWriter {
                 self.head = value;
                 self.staged = false;
                 self.published += 1;
+                self.progressed = self.now;
             }
             Purpose::Watchdog => {}
         }
@@ -674,9 +913,27 @@ impl RingWriter {
             });
         }
         self.tail = status.tail;
+        self.executed = status.executed;
+        let now = seen(&status);
+        // Held reads from the edge on, while the machine slows down too: it stands once
+        // its position reads the same twice.
+        let still = self
+            .last_seen
+            .is_some_and(|last| (last.3, last.4, last.5) == (now.3, now.4, now.5));
+        if self.last_seen != Some(now) {
+            self.last_seen = Some(now);
+            self.progressed = self.now;
+        }
         if self.end && status.state == State::Done {
             self.events.push_back(WriterEvent::Done);
             self.phase = Phase::Finished;
+        } else if matches!(self.phase, Phase::Stopping { .. })
+            && self.commands.is_empty()
+            && still
+            && matches!(status.state, State::Held | State::Idle)
+        {
+            // The edge written and the machine at rest: RUN is cleared next.
+            self.standing = true;
         }
     }
 

@@ -1,5 +1,8 @@
 //! The ring writer against a controller kept by hand as `docs/modbus.md` states it: the
-//! start, back-pressure, re-sends, exceptions, alarms, the caller's commands.
+//! start, back-pressure, re-sends, exceptions, alarms, the caller's commands; stops,
+//! stalls and where the controller is in [`stops`].
+
+mod stops;
 
 use super::map::{AlarmCode, WordOrder};
 use super::*;
@@ -22,6 +25,10 @@ struct Fake {
     head: u16,
     control: u16,
     watchdog: u16,
+    /// `EXECUTED_SEQ`.
+    executed: u32,
+    /// `POS_X`, 0.1 µm.
+    x: i32,
     ring: Vec<u16>,
 }
 
@@ -40,6 +47,8 @@ impl Fake {
             head: 0,
             control: 0,
             watchdog: 0,
+            executed: 0,
+            x: 0,
             ring: vec![0; usize::from(slots) * 16],
         }
     }
@@ -66,8 +75,9 @@ impl Fake {
                 let mut r = vec![self.state, self.alarm];
                 r.extend(self.order.u32_words(self.alarm_seq));
                 r.extend([self.detail, self.tail]);
-                r.extend(self.order.u32_words(0));
-                r.extend([0; 8]);
+                r.extend(self.order.u32_words(self.executed));
+                r.extend(self.order.u32_words(self.x as u32));
+                r.extend([0; 6]);
                 r.extend([self.control, self.head, self.watchdog]);
                 Ok(Response::ReadHolding(r))
             }
@@ -550,7 +560,8 @@ fn refusals_before_streaming() {
     };
     assert_eq!(
         e.to_string(),
-        "the controller is Alarm, not idle or done (alarm 104 (watchdog))"
+        "the controller is in alarm 104 (watchdog), not idle, held or done; nothing was \
+         written"
     );
     // Not a whirl map.
     let mut fake = Fake::new(1);

@@ -363,7 +363,7 @@ async fn eof_from_the_controller_is_an_error_naming_the_port() {
     let run = run(moves(20), options(), Fake::grblhal(1024), script).await;
     let error = run.result.unwrap_err();
     assert!(
-        matches!(&error, SerialError::Eof { port } if port == "/dev/ttyTEST"),
+        matches!(&error, SerialError::Eof { port, resume: Some(_) } if port == "/dev/ttyTEST"),
         "{error:?}"
     );
     assert!(error.to_string().contains("/dev/ttyTEST"), "{error}");

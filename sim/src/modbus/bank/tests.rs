@@ -801,6 +801,52 @@ fn abort_stops_and_flushes() {
 }
 
 #[test]
+fn a_stopped_stream_stands_held_without_the_watchdog_and_the_next_flushes_it() {
+    // docs/modbus.md, "Stopping and resuming": the bridge's stop is a HOLD edge, then,
+    // the machine standing, CONTROL = 0. A watchdog of 2 s, which the stop beats.
+    let mut b = bank_on(
+        &machine(),
+        BankOptions {
+            slots: 4,
+            watchdog_timeout_ms: 2000,
+            ..BankOptions::default()
+        },
+    );
+    publish(
+        &mut b,
+        &[
+            linked(1, 5.0, 0.0, 0.0, 0.5),
+            linked(2, 50.0, 0.0, 0.0, 2.0),
+            linked(3, 60.0, 0.0, 0.0, 1.0),
+        ],
+    )
+    .unwrap();
+    write(&mut b, 32, 1).unwrap();
+    b.advance(0.7).unwrap();
+    write(&mut b, 32, 1 | 2).unwrap();
+    run(&mut b, 2.0, |b| {
+        b.controller().state() == MachineState::Hold { complete: true }
+    });
+    write(&mut b, 32, 0).unwrap();
+    // RUN clear: the watchdog is not armed, so the bridge may go. Held it stays, the first
+    // segment executed, the second interrupted, the third still in the ring.
+    b.advance(5.0).unwrap();
+    assert_eq!(state(&mut b), 2);
+    assert_eq!(alarm(&mut b).1, 0);
+    assert_eq!(ring(&mut b).2, 1);
+    // The next stream: CONTROL 0, then ABORT, which the map allows in any state: at rest, it
+    // is complete when answered, and any first sequence number goes.
+    write(&mut b, 32, 0).unwrap();
+    write(&mut b, 32, 16).unwrap();
+    assert_eq!(state(&mut b), 0);
+    assert_eq!(ring(&mut b), (0, 0, 0));
+    assert!(publish(&mut b, &[linked(9, 5.0, 0.0, 0.0, 0.1)]).is_ok());
+    write(&mut b, 32, 1 | 32).unwrap();
+    let events = run(&mut b, 5.0, |b| state(b) == 4);
+    assert_eq!(executed(&events), vec![9]);
+}
+
+#[test]
 fn options_and_time_are_checked() {
     let controller = || Controller::new(&machine(), ControllerOptions::default()).unwrap();
     for (options, name) in [

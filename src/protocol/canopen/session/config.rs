@@ -43,6 +43,10 @@ pub struct SessionConfig {
     /// to speed: at least the time every axis needs to stop from its max rate
     /// ([`MachineProfile::stop_time`](crate::config::machine::MachineProfile::stop_time)).
     pub hold_ramp: Duration,
+    /// Stop the job gently ([`Session::stop_held`](super::Session::stop_held)) when the
+    /// set-points move on and no drive's TPDO has shown anything new for this long, in the
+    /// session's time; `None` waits. See the session's docs, "Stopping".
+    pub stall_timeout: Option<Duration>,
 }
 
 /// The CiA 402 modes of operation the session runs the drives in: either takes one
@@ -127,6 +131,7 @@ impl Default for SessionConfig {
             disable_timeout: Duration::from_secs(1),
             operation: Operation::CyclicSynchronousPosition,
             hold_ramp: Duration::from_millis(200),
+            stall_timeout: None,
         }
     }
 }

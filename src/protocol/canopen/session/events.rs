@@ -193,6 +193,39 @@ pub enum StopReason {
     /// [`Session::stop`](super::Session::stop).
     #[error("stop requested")]
     Requested,
+    /// The caller stopped the job ([`Session::stop_held`](super::Session::stop_held)): an
+    /// interrupted bridge, a stop button.
+    #[error("interrupted ({why}): the path held to a stand, then the drives disabled")]
+    Interrupted {
+        /// Why, in the caller's words.
+        why: String,
+    },
+    /// The set-points moved on and no drive reported anything new for
+    /// [`SessionConfig::stall_timeout`](super::SessionConfig::stall_timeout).
+    #[error(
+        "nothing new from the drives for {} s: the path held to a stand, then the drives \
+         disabled",
+        .waited.as_secs_f64()
+    )]
+    Stalled {
+        /// The stall timeout.
+        waited: Duration,
+    },
+    /// A gentle stop's drives did not stand at the held targets in time: quick stop.
+    #[error(
+        "node {node} ({axis}) did not stand within {window} counts of its held target \
+         within {waited:?} of the stop: quick stop"
+    )]
+    NoStand {
+        /// The first drive not standing.
+        node: NodeId,
+        /// Its axis.
+        axis: Axis,
+        /// [`SessionConfig::settle_window`](super::SessionConfig::settle_window).
+        window: u32,
+        /// How long the session waited: the hold ramp and the settle timeout.
+        waited: Duration,
+    },
 }
 
 /// What happened, in order.

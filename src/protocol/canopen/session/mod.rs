@@ -53,6 +53,31 @@
 //! names the drives not confirmed. Faults are not reset: a faulted drive stays faulted for
 //! someone to look at.
 //!
+//! [`Session::stop_held`] is the gentle stop, for an interrupted bridge: [`Event::Stopped`]
+//! at once, then the hold's ramp brings the set-points to a stand on the path, and once
+//! every drive stands within [`SessionConfig::settle_window`] of its held target, the
+//! drives are walked to Switch on disabled as at the job's end (no quick stop) and the
+//! session ends [`Phase::Stopped`] after [`Event::Halted`]. The wait for the stand is
+//! limited to the hold ramp plus [`SessionConfig::settle_timeout`] (the machine's stop time
+//! and a margin); past it the drives get the quick stop above, [`StopReason::NoStand`]
+//! saying why (any stop during a gentle one does the same, with a second
+//! [`Event::Stopped`]: the first reason is the job's). With
+//! [`SessionConfig::stall_timeout`], a job whose set-points move on while no drive's TPDO
+//! shows anything new (position or statusword) for that long is stopped the same way,
+//! [`StopReason::Stalled`]; the set-points standing (the caller's hold, a spin-up) is no
+//! stall.
+//!
+//! # Where the drives are
+//!
+//! A drive reports its position actual value (6064h) in every TPDO. A set-point is known
+//! reached once the three positions, reported together, are each within the settle window
+//! of it, or of the targets the path stands at between set-points (a hold): the drives
+//! were there. The search runs over the last set-points sent, newest first, so the count
+//! only grows. A drive lagging its targets by more than the window while it moves is seen
+//! reaching the path only where it stands (a hold, the end): the count then stays behind,
+//! never ahead. [`Session::resume_move`] says it in the program's moves: the first not
+//! known to have run to its end.
+//!
 //! # The cycle
 //!
 //! Set-points are computed before the first SYNC ([`crate::post::setpoints`]), so a cycle only
@@ -157,6 +182,15 @@ pub struct Session {
     speed: f64,
     /// The caller asked for a hold (and no resume since).
     held: bool,
+    /// A gentle stop ([`Session::stop_held`]) is under way: the job ends stopped.
+    interrupted: bool,
+    /// While a gentle stop waits for the drives to stand: until when.
+    stand_by: Option<Duration>,
+    /// Set-points the drives are known to have reached (see "Where the drives are").
+    reached: usize,
+    /// When a drive last reported something new, or the set-points stood: the stall's
+    /// clock.
+    progressed: Duration,
     /// The set-points where one straight move ends and the next begins (1-based, as
     /// `position` counts): no step crosses one, so the drives turn the polyline's corners
     /// whatever the path's speed.
@@ -165,6 +199,11 @@ pub struct Session {
     outbox: Vec<CanFrame>,
     events: Vec<Event>,
 }
+
+/// How many set-points back from the last sent the drives' positions are looked for (see
+/// "Where the drives are"): the TPDOs of a cycle may reach the session several cycles late
+/// (eight in the transport's lockstep), and a drive lags its target by a cycle or two.
+const REACHED_LOOKBACK: usize = 32;
 
 fn frame(id: u16, data: &[u8]) -> CanFrame {
     CanFrame::standard(id, data).expect("CANopen frames are 11-bit and at most 8 bytes")
@@ -237,6 +276,10 @@ impl Session {
             position: 0.0,
             speed: 1.0,
             held: false,
+            interrupted: false,
+            stand_by: None,
+            reached: 0,
+            progressed: Duration::ZERO,
             next_mark: 0,
             outbox: Vec::new(),
             events: Vec::new(),
@@ -283,9 +326,49 @@ impl Session {
         self.held = true;
     }
 
-    /// Resumes after a hold: the set-points come back up to speed over the same ramp.
+    /// Resumes after a hold: the set-points come back up to speed over the same ramp. A
+    /// gentle stop under way is not undone.
     pub fn resume(&mut self) {
-        self.held = false;
+        if !self.interrupted {
+            self.held = false;
+        }
+    }
+
+    /// Stops the job gently for `reason` (see the module docs, "Stopping"): the path held
+    /// to a stand, then the drives disabled as at the job's end. Before the set-points
+    /// start nothing moves along the path, and it is [`Session::stop`]'s stop; after the
+    /// last set-point the drives settle at the path's end and the job finishes, with
+    /// nothing left to resume.
+    pub fn stop_held(&mut self, reason: StopReason, now: Duration) {
+        let total = self.setpoints.points.len();
+        match self.phase {
+            Phase::Running if self.interrupted || self.sent >= total => {}
+            Phase::Running => {
+                self.events.push(Event::Stopped { reason });
+                self.interrupted = true;
+                self.held = true;
+                self.stand_by = Some(now + self.config.hold_ramp + self.config.settle_timeout);
+            }
+            Phase::Booting | Phase::Configuring | Phase::Enabling => self.halt(reason, now),
+            _ => {}
+        }
+    }
+
+    /// The index in the program of the first move the drives are not known to have run
+    /// to its end (see the module docs, "Where the drives are"): the move of the last
+    /// set-point known reached, or the one after it if that set-point is its end; 0 if
+    /// none is known reached.
+    pub fn resume_move(&self) -> usize {
+        let k = self.reached;
+        if k == 0 {
+            return 0;
+        }
+        let i = self.junctions.partition_point(|&j| j < k);
+        match self.setpoints.moves.get(i) {
+            Some(m) if self.junctions[i] == k => m.index + 1,
+            Some(m) => m.index,
+            None => self.setpoints.moves.last().map_or(0, |m| m.index + 1),
+        }
     }
 
     /// The change of speed in one cycle on the hold ramp.
@@ -483,9 +566,13 @@ impl Session {
         let near = drive.target.or(drive.actual).unwrap_or(start);
         let actual = unwrap_near(wire, near);
         drive.still = drive.actual == Some(actual);
+        let news = !drive.still || drive.statusword != Some(statusword);
         drive.actual = Some(actual);
         drive.statusword = Some(statusword);
         drive.fresh = true;
+        if news {
+            self.progressed = now;
+        }
         let state = match PowerState::from_statusword(statusword) {
             Ok(state) => state,
             Err(_) if self.phase == Phase::Stopping => return,
@@ -543,6 +630,40 @@ impl Session {
                 state => self.halt(StopReason::LeftOperation { node, axis, state }, now),
             },
             _ => {}
+        }
+        self.track_reached();
+    }
+
+    /// Counts the set-points the drives are known to have reached, from the positions they
+    /// last reported (see the module docs, "Where the drives are").
+    fn track_reached(&mut self) {
+        let window = u64::from(self.config.settle_window);
+        let (Some(x), Some(z), Some(c)) = (
+            self.drives[0].actual,
+            self.drives[1].actual,
+            self.drives[2].actual,
+        ) else {
+            return;
+        };
+        let at = |point: [i64; 3]| {
+            [x, z, c]
+                .iter()
+                .zip(point)
+                .all(|(a, p)| a.abs_diff(p) <= window)
+        };
+        let targets = self.drives.each_ref().map(|d| d.target);
+        if let [Some(x), Some(z), Some(c)] = targets {
+            if at([x, z, c]) {
+                self.reached = self.reached.max(self.sent);
+                return;
+            }
+        }
+        let low = self.reached.max(self.sent.saturating_sub(REACHED_LOOKBACK));
+        if let Some(k) = (low + 1..=self.sent)
+            .rev()
+            .find(|&k| at(self.setpoints.points[k - 1]))
+        {
+            self.reached = k;
         }
     }
 
@@ -698,6 +819,7 @@ impl Session {
             self.events.push(Event::Enabled { syncs: self.syncs });
             self.phase = Phase::Running;
             self.deadline = None;
+            self.progressed = now;
             if self.held {
                 // Held before the set-points start: they start standing.
                 self.speed = 0.0;
@@ -776,6 +898,29 @@ impl Session {
             self.deadline = Some(now + self.config.settle_timeout);
             return self.settling(now);
         }
+        if let Some(deadline) = self.stand_by {
+            let off = self.off_target();
+            if self.speed == 0.0 && off.is_none() {
+                self.stand_by = None;
+                return self.disable(now);
+            }
+            if now >= deadline {
+                let (node, axis) = self.reason_for(off.unwrap_or(0));
+                let reason = StopReason::NoStand {
+                    node,
+                    axis,
+                    window: self.config.settle_window,
+                    waited: self.config.hold_ramp + self.config.settle_timeout,
+                };
+                self.halt(reason, now);
+                return self.stopping(now);
+            }
+        }
+        if let Some(limit) = self.config.stall_timeout {
+            if !self.held && now.saturating_sub(self.progressed) >= limit {
+                self.stop_held(StopReason::Stalled { waited: limit }, now);
+            }
+        }
         let step = self.ramp_step();
         let was = self.speed;
         self.speed = if self.held {
@@ -796,6 +941,15 @@ impl Session {
         let junction = self.junctions.get(next).map_or(total, |&j| j.min(total));
         self.position = (self.position + self.speed).min(junction as f64);
         let point = self.path_at(self.position);
+        if self
+            .drives
+            .iter()
+            .zip(point)
+            .all(|(d, p)| d.target == Some(p))
+        {
+            // The set-points stand (a hold, a spin-up): no drive has anywhere new to go.
+            self.progressed = now;
+        }
         for (drive, target) in self.drives.iter_mut().zip(point) {
             drive.target = Some(target);
         }
@@ -819,13 +973,7 @@ impl Session {
         });
         let Some(k) = off else {
             self.events.push(Event::Settled);
-            self.phase = Phase::Disabling;
-            self.deadline = Some(now + self.config.disable_timeout);
-            for drive in &mut self.drives {
-                drive.sequencer.set_target(Target::SwitchOnDisabled);
-                drive.fresh = false;
-            }
-            return self.disabling(now);
+            return self.disable(now);
         };
         if self.deadline.is_some_and(|d| now >= d) {
             let (node, axis) = self.reason_for(k);
@@ -843,12 +991,39 @@ impl Session {
         Some([Some(self.run_word()); 3])
     }
 
+    /// The first drive not within the settle window of its target, if any.
+    fn off_target(&self) -> Option<usize> {
+        let window = u64::from(self.config.settle_window);
+        (0..3).find(|&k| match (self.drives[k].actual, self.drives[k].target) {
+            (Some(actual), Some(target)) => actual.abs_diff(target) > window,
+            _ => true,
+        })
+    }
+
+    /// The walk to Switch on disabled begins, at the job's end or a gentle stop's.
+    fn disable(&mut self, now: Duration) -> Option<[Option<u16>; 3]> {
+        self.phase = Phase::Disabling;
+        self.deadline = Some(now + self.config.disable_timeout);
+        for drive in &mut self.drives {
+            drive.sequencer.set_target(Target::SwitchOnDisabled);
+            drive.fresh = false;
+        }
+        self.disabling(now)
+    }
+
     fn disabling(&mut self, now: Duration) -> Option<[Option<u16>; 3]> {
         let disabled = |d: &Drive| d.fresh && d.state() == Some(PowerState::SwitchOnDisabled);
         if self.drives.iter().all(disabled) {
-            self.events.push(Event::Finished);
-            self.phase = Phase::Finished;
             self.deadline = None;
+            if self.interrupted {
+                self.phase = Phase::Stopped;
+                self.events.push(Event::Halted {
+                    unconfirmed: Vec::new(),
+                });
+            } else {
+                self.events.push(Event::Finished);
+                self.phase = Phase::Finished;
+            }
             return None;
         }
         if self.deadline.is_some_and(|d| now >= d) {

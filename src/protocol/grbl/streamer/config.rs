@@ -39,6 +39,14 @@ pub struct StreamerConfig {
     /// Used by [`Streamer::resume_from`](super::Streamer::resume_from): a dwell after
     /// restarting the spindle, seconds (0: none).
     pub spin_up_dwell_s: f64,
+    /// Ask the controller's state (`?`) before the first line and act on it: idle goes on;
+    /// held (a stop left it so) gets a soft reset, which keeps the position of a machine
+    /// at rest, then goes on; in alarm stops, unless [`StreamerConfig::unlock`]; anything
+    /// else (running, jogging, homing) stops. See [the streamer's docs](super#the-state-before-the-first-line).
+    pub check_state: bool,
+    /// With [`StreamerConfig::check_state`]: a controller in alarm is unlocked with `$X`
+    /// (the operator has said the machine is fit to go on).
+    pub unlock: bool,
 }
 
 impl Default for StreamerConfig {
@@ -50,6 +58,8 @@ impl Default for StreamerConfig {
             poll_interval: Some(DEFAULT_POLL_INTERVAL),
             start_line: 0,
             spin_up_dwell_s: 0.0,
+            check_state: false,
+            unlock: false,
         }
     }
 }

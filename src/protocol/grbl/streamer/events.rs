@@ -20,6 +20,8 @@ pub enum Aux {
     Preamble(usize),
     /// The empty line that clears grblHAL's sticky error.
     ClearError,
+    /// `$X`, unlocking a controller found in alarm before the first line.
+    Unlock,
 }
 
 /// Any line the streamer sends.
@@ -39,6 +41,7 @@ impl fmt::Display for LineRef {
             LineRef::Aux(Aux::BuildInfo) => write!(f, "the $I query"),
             LineRef::Aux(Aux::Preamble(index)) => write!(f, "resume preamble line {}", index + 1),
             LineRef::Aux(Aux::ClearError) => write!(f, "the error-clearing empty line"),
+            LineRef::Aux(Aux::Unlock) => write!(f, "the unlock $X"),
         }
     }
 }
@@ -77,6 +80,26 @@ pub enum StopReason {
     /// [`Streamer::soft_reset`](super::Streamer::soft_reset) was called.
     #[error("soft reset requested")]
     SoftReset,
+    /// [`Streamer::interrupt`](super::Streamer::interrupt) was called: a feed hold, and
+    /// no line sent after it.
+    #[error("interrupted ({reason}): feed hold sent")]
+    Interrupted {
+        /// Why, as the caller said it.
+        reason: String,
+    },
+    /// The controller was in alarm before the first line, and unlocking was not asked for.
+    #[error(
+        "the controller is in alarm and locks out G-code (a reset mid-motion, a limit, or an \
+         earlier alarm): check the machine, then run again with --unlock to clear it with $X"
+    )]
+    AlarmAtStart,
+    /// The controller was busy before the first line (running, jogging, homing) or still
+    /// held after a reset.
+    #[error("the controller is {state} before the first line: nothing was sent")]
+    Busy {
+        /// The state it reported.
+        state: String,
+    },
 }
 
 /// What happened; see [`Streamer::next_event`](super::Streamer::next_event).
