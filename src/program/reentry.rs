@@ -17,9 +17,10 @@
 //!    the same radial plunge as the lead-in, at a point of the helix.
 //!
 //! From there the resume line and the rest of the program follow. A line the controller had
-//! finished is cut again along the same path, which removes nothing more. Before the cut
-//! (the lead-in) and after it (the lead-out) the program's own moves are already the safe
-//! way, so nothing is added.
+//! finished is cut again along the same path, which removes nothing more. A resume in the
+//! lead-in clears X the same way (the ring may have cut on past a line not known to have
+//! run) and leaves the rest of the lead-in to the program; after the cut the lead-out
+//! begins by clearing X, so nothing is added there.
 
 use thiserror::Error;
 
@@ -54,9 +55,15 @@ pub enum ReentryError {
     },
 }
 
-/// The moves that bring the ring from wherever it stopped to the start of `program.moves[from]`
-/// along the way the program came in (see the module docs); empty when `from` is not inside
-/// the cut, where the program's own moves are the way.
+/// The moves that bring the ring from wherever it stopped to the start of
+/// `program.moves[from]` along the way the program came in (see the module docs); empty
+/// where the program's own next move is that way: at or before its first move out to the
+/// clear X, and after its cut (the lead-out begins with that move).
+///
+/// In the lead-in the ring may stand anywhere all the same (a resume point is the first
+/// line *not known* to have run, and the controller may have cut on well past it), so it
+/// clears X there too and positions the axes the program had positioned; the rest of the
+/// lead-in follows as written.
 pub fn approach(program: &Program, from: usize) -> Result<Vec<Move>, ReentryError> {
     let moves = &program.moves;
     if from > moves.len() {
@@ -72,28 +79,20 @@ pub fn approach(program: &Program, from: usize) -> Result<Vec<Move>, ReentryErro
     ) else {
         return Ok(Vec::new());
     };
-    if from <= first_cut || from > last_cut {
+    if from == 0 || from > last_cut {
         return Ok(Vec::new());
     }
-    let clear = moves[..first_cut]
+    let (clear_at, clear) = moves[..first_cut]
         .iter()
-        .find_map(|m| match m {
-            Move::Rapid { x: Some(x), .. } => Some(*x),
+        .enumerate()
+        .find_map(|(i, m)| match m {
+            Move::Rapid { x: Some(x), .. } => Some((i, *x)),
             _ => None,
         })
         .ok_or(ReentryError::NoClearX)?;
-    let plunge = moves
-        .iter()
-        .find_map(|m| match m {
-            Move::Feed {
-                x: Some(_),
-                z: None,
-                c: None,
-                feed,
-            } => Some(*feed),
-            _ => None,
-        })
-        .ok_or(ReentryError::NoPlunge)?;
+    if from <= clear_at {
+        return Ok(Vec::new());
+    }
     let before = Program {
         moves: moves[..from].to_vec(),
     };
@@ -107,27 +106,48 @@ pub fn approach(program: &Program, from: usize) -> Result<Vec<Move>, ReentryErro
             _ => {}
         }
     }
-    let known = |value: Option<f64>, axis| value.ok_or(ReentryError::Unpositioned { axis, from });
-    let (x, z, c) = (known(at.x, 'X')?, known(at.z, 'Z')?, known(at.c, 'C')?);
-    let mut approach = vec![
-        Move::Rapid {
-            x: Some(clear),
-            z: None,
-            c: None,
-        },
-        Move::Rapid {
-            x: None,
-            z: Some(z),
-            c: Some(c),
-        },
-    ];
-    approach.extend(spindle.map(|rpm| Move::SpindleOn { rpm }));
-    approach.push(Move::Feed {
-        x: Some(x),
+    // Inside the cut every axis must be known; in the lead-in the program positions the
+    // rest itself.
+    if from > first_cut {
+        for (value, axis) in [(at.x, 'X'), (at.z, 'Z'), (at.c, 'C')] {
+            if value.is_none() {
+                return Err(ReentryError::Unpositioned { axis, from });
+            }
+        }
+    }
+    let mut approach = vec![Move::Rapid {
+        x: Some(clear),
         z: None,
         c: None,
-        feed: plunge,
-    });
+    }];
+    if at.z.is_some() || at.c.is_some() {
+        approach.push(Move::Rapid {
+            x: None,
+            z: at.z,
+            c: at.c,
+        });
+    }
+    approach.extend(spindle.map(|rpm| Move::SpindleOn { rpm }));
+    if let Some(x) = at.x.filter(|&x| x != clear) {
+        let plunge = moves
+            .iter()
+            .find_map(|m| match m {
+                Move::Feed {
+                    x: Some(_),
+                    z: None,
+                    c: None,
+                    feed,
+                } => Some(*feed),
+                _ => None,
+            })
+            .ok_or(ReentryError::NoPlunge)?;
+        approach.push(Move::Feed {
+            x: Some(x),
+            z: None,
+            c: None,
+            feed: plunge,
+        });
+    }
     Ok(approach)
 }
 

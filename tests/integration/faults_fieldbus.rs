@@ -368,12 +368,15 @@ async fn a_stop_over_modbus_holds_the_controller_and_the_next_run_starts_from_he
     let resume = o.resume_move.expect("a resume point");
     assert_eq!(resume, moves[last as usize]);
     assert!(resume > 0 && resume < first.program.moves.len());
+    // The run ends with its End and, beside it, the program line to resume at.
     let records = log.records();
+    let n = records.len();
     assert!(
-        matches!(records.last().map(|r| &r.event), Some(Event::End { completed: false, reason: Some(r) }) if r.contains("the test's stop")),
+        matches!(&records[n - 2].event, Event::End { completed: false, reason: Some(r) } if r.contains("the test's stop")),
         "{:?}",
-        records.last()
+        &records[n - 2..]
     );
+    assert!(matches!(records[n - 1].event, Event::ResumeAt { .. }));
     // The next run re-enters along the path on the held controller: its ring flushed, it
     // runs to the end.
     let resumed = posted(
@@ -522,13 +525,15 @@ async fn a_stop_over_can_holds_the_path_then_disables_the_drives_gently() {
     }
     let records = log.records();
     assert!(records.iter().any(|r| matches!(&r.event, Event::Message { text } if text.contains("every drive confirmed disabled"))));
+    let n = records.len();
     assert!(matches!(
-        records.last().map(|r| &r.event),
-        Some(Event::End {
+        &records[n - 2].event,
+        Event::End {
             completed: false,
             reason: Some(_)
-        })
+        }
     ));
+    assert!(matches!(records[n - 1].event, Event::ResumeAt { .. }));
 }
 
 /// `whirl ARGS…` run by bash with the files it writes limited to `kib` KiB and SIGXFSZ

@@ -102,8 +102,18 @@ fn the_resumed_program_reaches_each_remaining_move_where_the_original_does() {
         for step in resumed.steps(anywhere).take(added) {
             reached = step.to;
         }
+        // Axes the program has not positioned yet by then are left to its lead-in.
         if added > 0 {
-            assert_eq!(reached, start_of(&program, from), "from {from}");
+            let start = start_of(&program, from);
+            for (got, want) in [
+                (reached.x, start.x),
+                (reached.z, start.z),
+                (reached.c, start.c),
+            ] {
+                if want.is_some() {
+                    assert_eq!(got, want, "from {from}");
+                }
+            }
         }
     }
 }
@@ -124,20 +134,43 @@ fn every_approach_move_off_the_clear_x_is_radial() {
 }
 
 #[test]
-fn before_and_after_the_cut_the_programs_own_moves_are_the_way() {
+fn before_the_clear_and_after_the_cut_the_programs_own_moves_are_the_way() {
     let program = program();
-    // Up to the plunge: the lead-in positions and plunges as written.
-    for from in 0..=5 {
+    // Up to the move out to the clear X: the program starts with it.
+    for from in 0..=1 {
         assert_eq!(approach(&program, from).unwrap(), vec![], "from {from}");
     }
     // The lead-out (X clear first) and the end.
     for from in 9..=program.moves.len() {
         assert_eq!(approach(&program, from).unwrap(), vec![], "from {from}");
     }
-    // Inside the cut, always an approach.
-    for from in 6..=8 {
-        assert_eq!(approach(&program, from).unwrap().len(), 4, "from {from}");
-    }
+}
+
+#[test]
+fn in_the_lead_in_the_ring_clears_and_the_program_positions_the_rest() {
+    let program = program();
+    let clear = Move::Rapid {
+        x: Some(0.0),
+        z: None,
+        c: None,
+    };
+    // Resuming at the C rapid: wherever the ring is (it may have cut on past the lines not
+    // known to have run), it goes out to the clear X first; nothing else is known yet.
+    assert_eq!(approach(&program, 2).unwrap(), vec![clear.clone()]);
+    // At the plunge: out, to where the lead-in had put C and Z, the spindle on; the plunge
+    // itself follows as written (X is at the clear position there, so no plunge of its own).
+    assert_eq!(
+        approach(&program, 5).unwrap(),
+        vec![
+            clear,
+            Move::Rapid {
+                x: None,
+                z: Some(0.0),
+                c: Some(0.0)
+            },
+            Move::SpindleOn { rpm: 2500.0 },
+        ]
+    );
 }
 
 #[test]
