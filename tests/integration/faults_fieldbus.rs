@@ -9,7 +9,7 @@
 //! its log, and the bridge's log and exit.
 
 use std::ffi::OsStr;
-use std::io::{BufRead, BufReader, Read};
+use std::io::Read;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
@@ -35,37 +35,6 @@ const RUN: u16 = 1;
 const HOLD: u16 = 2;
 const RUNNING: u16 = 1;
 const HELD: u16 = 2;
-
-/// `whirl-sim --modbus-tcp` on a free loopback port in real time, logging to `log`; its
-/// address. Its stderr is drained for as long as it runs (a closed pipe would end it at
-/// its next word: a connection that ends).
-fn modbus_sim(log: &Path) -> (Sim, SocketAddr) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_whirl-sim"))
-        .args([
-            OsStr::new("--modbus-tcp"),
-            OsStr::new("127.0.0.1:0"),
-            OsStr::new("--time-scale"),
-            OsStr::new("1"),
-            OsStr::new("--idle-exit"),
-            OsStr::new("60"),
-            OsStr::new("--log"),
-            log.as_os_str(),
-        ])
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("whirl-sim starts");
-    let mut stderr = BufReader::new(child.stderr.take().unwrap());
-    let mut banner = String::new();
-    stderr.read_line(&mut banner).unwrap();
-    std::thread::spawn(move || std::io::copy(&mut stderr, &mut std::io::sink()));
-    let address = banner
-        .trim()
-        .strip_prefix("whirl-sim: serving Modbus on ")
-        .unwrap_or_else(|| panic!("{banner}"))
-        .parse()
-        .unwrap();
-    (Sim(child), address)
-}
 
 /// `whirl-sim --can-slcan` at `link` with `profile`'s drives, logging to `log`.
 fn can_sim(link: &Path, profile: &Path, log: &Path) -> Sim {
@@ -202,7 +171,7 @@ fn whirl_stream_modbus(program: &Path, address: SocketAddr, log: &Path, extra: &
 #[test]
 fn another_clients_hold_over_modbus_is_a_stall_that_ends_the_run_held() {
     let dir = tempfile::tempdir().unwrap();
-    let (_sim, address) = modbus_sim(&dir.path().join("sim.jsonl"));
+    let (_sim, address) = util::modbus_tcp_sim(&dir.path().join("sim.jsonl"));
     let program = util::write(dir.path(), "long.nc", &back_and_forth(100));
     let log = dir.path().join("exec.jsonl");
     let stall = Duration::from_secs(2);
@@ -248,7 +217,7 @@ fn another_clients_hold_over_modbus_is_a_stall_that_ends_the_run_held() {
 #[test]
 fn a_killed_modbus_simulator_ends_the_run_with_an_end_that_names_the_link() {
     let dir = tempfile::tempdir().unwrap();
-    let (mut sim, address) = modbus_sim(&dir.path().join("sim.jsonl"));
+    let (mut sim, address) = util::modbus_tcp_sim(&dir.path().join("sim.jsonl"));
     let program = util::write(dir.path(), "long.nc", &back_and_forth(100));
     let log = dir.path().join("exec.jsonl");
     let mut whirl = whirl_stream_modbus(&program, address, &log, &[]);
@@ -324,7 +293,7 @@ fn posted(name: &str, program: whirl::program::Program) -> Posted {
 async fn a_stop_over_modbus_holds_the_controller_and_the_next_run_starts_from_held() {
     let dir = tempfile::tempdir().unwrap();
     let sim_log = dir.path().join("sim.jsonl");
-    let (_sim, address) = modbus_sim(&sim_log);
+    let (_sim, address) = util::modbus_tcp_sim(&sim_log);
     let machine = sim_machine();
     let first = Posted::read("long.nc", &back_and_forth(30), &machine).unwrap();
     let link = modbus_link(address);
@@ -563,7 +532,7 @@ fn nearly_full_log(path: &Path, kib: u64, room: usize) {
 #[test]
 fn a_log_that_fails_mid_stream_over_modbus_holds_the_controller_first() {
     let dir = tempfile::tempdir().unwrap();
-    let (_sim, address) = modbus_sim(&dir.path().join("sim.jsonl"));
+    let (_sim, address) = util::modbus_tcp_sim(&dir.path().join("sim.jsonl"));
     let program = util::write(dir.path(), "long.nc", &back_and_forth(100));
     let log = dir.path().join("exec.jsonl");
     // Room for the start, the ring's first fill and a few seconds of status reads and

@@ -2,7 +2,6 @@
 
 use crate::util::{self, Sim};
 use std::ffi::OsStr;
-use std::process::{Command, Stdio};
 
 /// whirl-sim on a pseudo-terminal linked at `link`, 50 times real time.
 fn sim(link: &std::path::Path) -> Sim {
@@ -177,42 +176,12 @@ fn resume_at_streams_from_that_line_behind_a_preamble_and_runs_nothing_before_it
     assert_eq!(executed, (20..=40).collect::<Vec<u64>>());
 }
 
-/// whirl-sim serving the Modbus map on a loopback TCP port in real time (whirl stream feeds
-/// the controller's watchdog in wall time, as a bridge to a machine does), logging to
-/// `sim_log`; its address.
-fn modbus_tcp_sim(sim_log: &std::path::Path) -> (Sim, String) {
-    use std::io::{BufRead, BufReader};
-    let mut child = Command::new(env!("CARGO_BIN_EXE_whirl-sim"))
-        .args([
-            OsStr::new("--modbus-tcp"),
-            OsStr::new("127.0.0.1:0"),
-            OsStr::new("--time-scale"),
-            OsStr::new("1"),
-            OsStr::new("--idle-exit"),
-            OsStr::new("10"),
-            OsStr::new("--log"),
-            sim_log.as_os_str(),
-        ])
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("whirl-sim starts");
-    let mut banner = String::new();
-    BufReader::new(child.stderr.take().unwrap())
-        .read_line(&mut banner)
-        .unwrap();
-    let address = banner
-        .trim()
-        .strip_prefix("whirl-sim: serving Modbus on ")
-        .unwrap_or_else(|| panic!("{banner}"))
-        .to_owned();
-    (Sim(child), address)
-}
-
 #[test]
 fn whirl_stream_sends_a_program_through_the_modbus_map_to_whirl_sim_over_tcp() {
     let dir = tempfile::tempdir().unwrap();
     let sim_log = dir.path().join("sim.jsonl");
-    let (_sim, address) = modbus_tcp_sim(&sim_log);
+    let (_sim, address) = util::modbus_tcp_sim(&sim_log);
+    let address = address.to_string();
     stream_through_the_modbus_map(dir.path(), "modbus-tcp", &address, &sim_log);
 }
 
@@ -220,7 +189,8 @@ fn whirl_stream_sends_a_program_through_the_modbus_map_to_whirl_sim_over_tcp() {
 fn whirl_stream_takes_the_plcs_address_and_unit_from_the_machine_profile() {
     let dir = tempfile::tempdir().unwrap();
     let sim_log = dir.path().join("sim.jsonl");
-    let (_sim, address) = modbus_tcp_sim(&sim_log);
+    let (_sim, address) = util::modbus_tcp_sim(&sim_log);
+    let address = address.to_string();
     let plc = std::fs::read_to_string(util::root().join("machine-profiles/modbus-plc.toml"))
         .unwrap()
         .replace("192.168.0.10:502", &address)

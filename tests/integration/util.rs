@@ -160,3 +160,34 @@ pub fn short_double_start(
     assert!(matches!(short.last(), Some(Move::SpindleOff)));
     Program { moves: short }
 }
+
+/// `whirl-sim --modbus-tcp` on a free loopback port in real time, logging to `log`; its
+/// address. Its stderr is drained for as long as it runs (a closed pipe would end it at
+/// its next word: a connection that ends).
+pub fn modbus_tcp_sim(log: &Path) -> (Sim, std::net::SocketAddr) {
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_whirl-sim"))
+        .args([
+            std::ffi::OsStr::new("--modbus-tcp"),
+            std::ffi::OsStr::new("127.0.0.1:0"),
+            std::ffi::OsStr::new("--time-scale"),
+            std::ffi::OsStr::new("1"),
+            std::ffi::OsStr::new("--idle-exit"),
+            std::ffi::OsStr::new("60"),
+            std::ffi::OsStr::new("--log"),
+            log.as_os_str(),
+        ])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("whirl-sim starts");
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut banner = String::new();
+    std::io::BufRead::read_line(&mut stderr, &mut banner).unwrap();
+    std::thread::spawn(move || std::io::copy(&mut stderr, &mut std::io::sink()));
+    let address = banner
+        .trim()
+        .strip_prefix("whirl-sim: serving Modbus on ")
+        .unwrap_or_else(|| panic!("{banner}"))
+        .parse()
+        .unwrap();
+    (Sim(child), address)
+}
