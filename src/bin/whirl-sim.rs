@@ -20,6 +20,10 @@ use whirl::judge::guard::DeltaGuard;
 use whirl_sim::serve::{serve, ServeOptions};
 use whirl_sim::{Controller, ControllerOptions};
 
+#[path = "whirl/numbers.rs"]
+mod numbers;
+use numbers::{baud, number, rx, time_scale, whole_in};
+
 #[derive(Parser)]
 #[command(
     name = "whirl-sim",
@@ -306,44 +310,6 @@ fn counts(text: &str) -> Result<[f64; 3], String> {
 // The other numbers: each checked here, so that clap refuses a wrong one naming the option,
 // before anything starts.
 
-/// A number, which may still be NaN or infinite: each caller's range refuses those.
-fn number(text: &str) -> Result<f64, String> {
-    text.trim()
-        .parse()
-        .map_err(|_| format!("{text:?} is not a number"))
-}
-
-/// A whole number from `low` to `high`, `what` (" bytes") saying what it counts.
-fn whole_in<T>(text: &str, low: T, high: T, what: &str) -> Result<T, String>
-where
-    T: std::str::FromStr + PartialOrd + std::fmt::Display,
-{
-    let value: T = text
-        .trim()
-        .parse()
-        .map_err(|_| format!("{text:?} is not a whole number"))?;
-    if value >= low && value <= high {
-        Ok(value)
-    } else {
-        Err(format!("must be a whole number from {low} to {high}{what}"))
-    }
-}
-
-/// `--time-scale`: simulated seconds per wall second, 0.001 to 10000; 0: as fast as the
-/// host allows.
-fn time_scale(text: &str) -> Result<f64, String> {
-    let scale = number(text)?;
-    if scale == 0.0 || (1e-3..=1e4).contains(&scale) {
-        Ok(scale)
-    } else {
-        Err(
-            "must be 0 (as fast as the host allows) or a number from 0.001 to 10000 simulated \
-             seconds per wall second"
-                .into(),
-        )
-    }
-}
-
 /// `--idle-exit`: seconds, up to a week; 0: never.
 fn idle_exit(text: &str) -> Result<f64, String> {
     let seconds = number(text)?;
@@ -352,16 +318,6 @@ fn idle_exit(text: &str) -> Result<f64, String> {
     } else {
         Err("must be 0 (never) or a number of seconds up to 604800 (a week)".into())
     }
-}
-
-/// `--baud`: bits per second, 300 to 10 000 000.
-fn baud(text: &str) -> Result<u32, String> {
-    whole_in(text, 300, 10_000_000, " bits per second")
-}
-
-/// `--rx`: the receive buffer, 128 (grbl on an AVR) to 65536 bytes.
-fn rx(text: &str) -> Result<usize, String> {
-    whole_in(text, 128, 65_536, " bytes")
 }
 
 /// `--can-cycle-us`: the SYNC period, in the range a machine profile's `cycle_us` takes.

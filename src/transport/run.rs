@@ -23,7 +23,7 @@ use crate::post::modbus::{segment_moves, segments, SegmentError};
 use crate::post::setpoints::SampleConfig;
 use crate::program::limits::{check_limits, LimitError};
 use crate::program::reentry::{approach, ReentryError};
-use crate::program::Program;
+use crate::program::{Move, Program};
 use crate::protocol::canopen::session::{SessionConfig, StopReason};
 use crate::protocol::grbl::{ResumePoint, StreamerConfig};
 use crate::protocol::modbus::WriterOptions;
@@ -289,6 +289,54 @@ impl StreamError {
     }
 }
 
+/// What a fieldbus transport runs: the moves of a [`Posted`] program from where a run
+/// picks it up, behind the approach that re-enters there, with each move's program line, so
+/// that a move the run stops at can be told as a line to resume at.
+struct Pickup {
+    program: Program,
+    /// The program line (0-based) of each move; the approach's is the resume line's.
+    lines: Vec<usize>,
+    /// One past the program's last line: where a run that ran every move would resume.
+    end: usize,
+}
+
+impl Pickup {
+    fn new(posted: &Posted, approach: Vec<Move>, from: usize, line: Option<usize>) -> Pickup {
+        let lines = std::iter::repeat_n(line.unwrap_or(0), approach.len())
+            .chain(posted.move_lines[from..].iter().map(|&l| l - 1))
+            .collect();
+        let mut program = Program { moves: approach };
+        program
+            .moves
+            .extend_from_slice(&posted.program.moves[from..]);
+        Pickup {
+            program,
+            lines,
+            end: posted.lines.len(),
+        }
+    }
+
+    /// The program line of move `index` of [`Pickup::program`].
+    fn line_of(&self, index: usize) -> usize {
+        self.lines.get(index).copied().unwrap_or(self.end)
+    }
+
+    /// A transport's `error`, with where to resume if it failed mid-run at `resume_move`.
+    fn interrupted(
+        &self,
+        resume_move: Option<usize>,
+        error: impl Into<StreamError>,
+    ) -> StreamError {
+        match resume_move {
+            Some(at) => StreamError::Interrupted {
+                resume: Resume::at(self.line_of(at)),
+                error: Box::new(error.into()),
+            },
+            None => error.into(),
+        }
+    }
+}
+
 /// Streams `posted` to the machine at `link`, which `machine` describes: checked against
 /// its limits first, then run over the link's transport, the caller's `commands` obeyed,
 /// every event logged to `log`.
@@ -309,26 +357,8 @@ pub async fn stream(
         }
         _ => Vec::new(),
     };
-    // What the fieldbus transports run: the approach, then the moves from the resume
-    // move on; and each of those moves' program line (0-based), the approach's being the
-    // resume line's, for where a stop resumes.
-    let from = from.unwrap_or(0);
-    let resume_line = options.resume_at.unwrap_or(0);
-    let mut program = Program {
-        moves: approach.clone(),
-    };
-    program
-        .moves
-        .extend_from_slice(&posted.program.moves[from..]);
-    let lines: Vec<usize> = std::iter::repeat_n(resume_line, approach.len())
-        .chain(posted.move_lines[from..].iter().map(|&l| l - 1))
-        .collect();
-    let line_of = |resume_move: usize| {
-        lines
-            .get(resume_move)
-            .copied()
-            .unwrap_or(posted.lines.len())
-    };
+    // Where the fieldbus transports pick the program up.
+    let pickup = |approach| Pickup::new(posted, approach, from.unwrap_or(0), options.resume_at);
     let started = std::time::Instant::now();
     let result: Result<Outcome, StreamError> = async {
         Ok(match link {
@@ -356,6 +386,7 @@ pub async fn stream(
                 unit,
                 timeout,
             } => {
+                let moves = pickup(approach);
                 let options = ModbusOptions {
                     writer: WriterOptions {
                         // A stop waits for the stand as long as the machine takes to stop from
@@ -364,7 +395,7 @@ pub async fn stream(
                         ..WriterOptions::default()
                     },
                     stall_timeout: options.stall_timeout,
-                    segment_moves: segment_moves(&program),
+                    segment_moves: segment_moves(&moves.program),
                     program: name,
                     unit: *unit,
                     timeout: *timeout,
@@ -372,20 +403,15 @@ pub async fn stream(
                     commands: Some(commands),
                     ..ModbusOptions::default()
                 };
-                let segments = segments(&program)?;
-                let mut outcome = stream_modbus(link, segments, options, log).await.map_err(
-                    |error| match error.resume_move() {
-                        Some(at) => StreamError::Interrupted {
-                            resume: Resume::at(line_of(at)),
-                            error: Box::new(error.into()),
-                        },
-                        None => error.into(),
-                    },
-                )?;
-                outcome.resume_line = outcome.resume_move.map(line_of);
+                let segments = segments(&moves.program)?;
+                let mut outcome = stream_modbus(link, segments, options, log)
+                    .await
+                    .map_err(|error| moves.interrupted(error.resume_move(), error))?;
+                outcome.resume_line = outcome.resume_move.map(|at| moves.line_of(at));
                 Outcome::Modbus(outcome)
             }
             Link::Can { link, drives } => {
+                let moves = pickup(approach);
                 let options = CanOptions {
                     session: SessionConfig {
                         hold_ramp: machine.stop_time(),
@@ -399,17 +425,10 @@ pub async fn stream(
                     on_progress: options.progress,
                     commands: Some(commands),
                 };
-                let mut outcome =
-                    stream_can(link, &program, options, log)
-                        .await
-                        .map_err(|error| match error.resume_move() {
-                            Some(at) => StreamError::Interrupted {
-                                resume: Resume::at(line_of(at)),
-                                error: Box::new(error.into()),
-                            },
-                            None => error.into(),
-                        })?;
-                outcome.resume_line = outcome.resume_move.map(line_of);
+                let mut outcome = stream_can(link, &moves.program, options, log)
+                    .await
+                    .map_err(|error| moves.interrupted(error.resume_move(), error))?;
+                outcome.resume_line = outcome.resume_move.map(|at| moves.line_of(at));
                 Outcome::Can(outcome)
             }
         })

@@ -613,19 +613,17 @@ impl Run<'_> {
                     self.streamer.poll(at.duration_since(self.start));
                 }
                 command = next_command(&mut commands) => self.command(command)?,
-                () = wait_until(deadline), if self.stand_by.is_some() => {
-                    tracing::warn!("no report of the machine at rest after the stop");
-                    self.write_log(log::Event::Message {
-                        text: "the controller did not report the machine at rest after the \
-                               feed hold: check it stands before resuming"
-                            .to_owned(),
-                    })?;
-                    self.stand_by = None;
-                    if let Some(reason) = self.stopped.clone() {
-                        return Ok(Ending::Stopped(reason));
+                () = wait_until(deadline) => {
+                    if self.stand_by.take().is_some() {
+                        // The wait after a stop ran out: the run ends at the top of the loop.
+                        tracing::warn!("no report of the machine at rest after the stop");
+                        self.write_log(log::Event::Message {
+                            text: "the controller did not report the machine at rest after \
+                                   the feed hold: check it stands before resuming"
+                                .to_owned(),
+                        })?;
+                        continue;
                     }
-                }
-                () = wait_until(deadline), if self.stand_by.is_none() => {
                     let after = self.timeout.unwrap_or_default();
                     tracing::warn!(seconds = after.as_secs_f64(), "no progress: feed hold");
                     self.streamer.feed_hold();

@@ -5,6 +5,8 @@ use std::path::PathBuf;
 use whirl::papers::section::MIN_ACCURACY;
 use whirl::transport::TransportKind;
 
+use crate::numbers::{baud, number, rx, time_scale, whole_in};
+
 #[derive(Parser)]
 #[command(
     name = "whirl",
@@ -227,13 +229,6 @@ pub(crate) enum SweepTool {
 /// beyond any machine, small enough that nothing computed from it overflows.
 const LARGEST: f64 = 1e6;
 
-/// A number, which may still be NaN or infinite: each caller's range refuses those.
-fn number(text: &str) -> Result<f64, String> {
-    text.trim()
-        .parse()
-        .map_err(|_| format!("{text:?} is not a number"))
-}
-
 /// A number (finite, then) from `low` to `high`, `what` (" seconds") saying what it counts.
 fn number_in(text: &str, low: f64, high: f64, what: &str) -> Result<f64, String> {
     let value = number(text)?;
@@ -244,50 +239,9 @@ fn number_in(text: &str, low: f64, high: f64, what: &str) -> Result<f64, String>
     }
 }
 
-/// A whole number from `low` to `high`, `what` (" bytes") saying what it counts.
-fn whole_in<T>(text: &str, low: T, high: T, what: &str) -> Result<T, String>
-where
-    T: std::str::FromStr + PartialOrd + std::fmt::Display,
-{
-    let value: T = text
-        .trim()
-        .parse()
-        .map_err(|_| format!("{text:?} is not a whole number"))?;
-    if value >= low && value <= high {
-        Ok(value)
-    } else {
-        Err(format!("must be a whole number from {low} to {high}{what}"))
-    }
-}
-
 /// `--stall-timeout`: seconds, from one to a week.
 fn stall_timeout(text: &str) -> Result<f64, String> {
     number_in(text, 1.0, 604_800.0, " seconds (a week)")
-}
-
-/// `--time-scale`: simulated seconds per wall second, 0.001 to 10000; 0: as fast as the
-/// host allows.
-fn time_scale(text: &str) -> Result<f64, String> {
-    let scale = number(text)?;
-    if scale == 0.0 || (1e-3..=1e4).contains(&scale) {
-        Ok(scale)
-    } else {
-        Err(
-            "must be 0 (as fast as the host allows) or a number from 0.001 to 10000 simulated \
-             seconds per wall second"
-                .into(),
-        )
-    }
-}
-
-/// `--baud`: bits per second, 300 to 10 000 000.
-fn baud(text: &str) -> Result<u32, String> {
-    whole_in(text, 300, 10_000_000, " bits per second")
-}
-
-/// `--rx`: a controller's receive buffer, 128 (grbl on an AVR) to 65536 bytes.
-fn rx(text: &str) -> Result<usize, String> {
-    whole_in(text, 128, 65_536, " bytes")
 }
 
 /// `--resume-at`: a program line, counted from 1.

@@ -6,6 +6,7 @@
 mod args;
 mod files;
 mod interrupt;
+mod numbers;
 mod terminal;
 
 use anyhow::{Context, Result};

@@ -412,39 +412,36 @@ pub fn reentry_preamble<S: AsRef<str>>(
         None => 1.0,
     };
     let c_shift = state.c_shift.unwrap_or(0.0);
-    let mut modes = "G21 G90 G94 ";
+    let axes = |x: Option<f64>, z: Option<f64>, c: Option<f64>| -> Result<String, ResumeError> {
+        let words = [
+            x.map(|x| word('X', x * x_scale)).transpose()?,
+            z.map(|z| word('Z', z)).transpose()?,
+            c.map(|c| word('C', c - c_shift)).transpose()?,
+        ];
+        Ok(words.into_iter().flatten().collect::<Vec<_>>().join(" "))
+    };
+    let mut moves = Vec::new();
     for m in approach {
-        let mut text = std::mem::take(&mut modes).to_owned();
-        let axes =
-            |x: Option<f64>, z: Option<f64>, c: Option<f64>| -> Result<String, ResumeError> {
-                let words = [
-                    x.map(|x| word('X', x * x_scale)).transpose()?,
-                    z.map(|z| word('Z', z)).transpose()?,
-                    c.map(|c| word('C', c - c_shift)).transpose()?,
-                ];
-                Ok(words.into_iter().flatten().collect::<Vec<_>>().join(" "))
-            };
         match *m {
-            Move::Rapid { x, z, c } => text.push_str(&format!("G0 {}", axes(x, z, c)?)),
+            Move::Rapid { x, z, c } => moves.push(format!("G0 {}", axes(x, z, c)?)),
             Move::Feed { x, z, c, feed } => {
-                text.push_str(&format!("G1 {} {}", axes(x, z, c)?, word('F', feed)?));
+                moves.push(format!("G1 {} {}", axes(x, z, c)?, word('F', feed)?));
             }
-            Move::SpindleOn { rpm } => {
-                text.push_str(&format!("M3 {}", word('S', rpm)?));
-                if spin_up_dwell_s > 0.0 && spin_up_dwell_s.is_finite() {
-                    preamble.push(text);
-                    text = format!("G4 {}", word('P', spin_up_dwell_s)?);
-                }
-            }
-            Move::SpindleOff => text.push_str("M5"),
+            Move::SpindleOn { rpm } => moves.extend(spin_up(Some(rpm), spin_up_dwell_s)?),
+            Move::SpindleOff => moves.push("M5".to_owned()),
             Move::Linked { .. } | Move::Comment(_) => {
                 return Err(ResumeError::ApproachMove {
                     what: format!("{m:?}"),
                 })
             }
         }
-        preamble.push(text.trim_end().to_owned());
     }
+    // The approach is written in millimetres, absolute, units per minute, whatever the
+    // program is in; the modal line after it puts the program's modes back.
+    if let Some(first) = moves.first_mut() {
+        first.insert_str(0, "G21 G90 G94 ");
+    }
+    preamble.extend(moves);
     preamble.push(modal_line(&state, lines, line_index)?);
     // The approach turned the spindle on where the program has it on.
     if !approach.iter().any(|m| matches!(m, Move::SpindleOn { .. })) {
@@ -527,17 +524,23 @@ fn modal_line<S: AsRef<str>>(
 
 /// `M3 S…` and the spin-up dwell, if the spindle is on; see [`resume_preamble`].
 fn spindle_lines(state: &ModalState, spin_up_dwell_s: f64) -> Result<Vec<String>, ResumeError> {
-    let mut preamble = Vec::new();
     if state.spindle_on {
-        match state.spindle_rpm {
-            Some(rpm) => preamble.push(format!("M3 {}", word('S', rpm)?)),
-            None => preamble.push("M3".to_owned()),
-        }
-        if spin_up_dwell_s > 0.0 && spin_up_dwell_s.is_finite() {
-            preamble.push(format!("G4 {}", word('P', spin_up_dwell_s)?));
-        }
+        spin_up(state.spindle_rpm, spin_up_dwell_s)
+    } else {
+        Ok(Vec::new())
     }
-    Ok(preamble)
+}
+
+/// `M3` (at `rpm`, if known) and the spin-up dwell, if there is one.
+fn spin_up(rpm: Option<f64>, spin_up_dwell_s: f64) -> Result<Vec<String>, ResumeError> {
+    let mut lines = vec![match rpm {
+        Some(rpm) => format!("M3 {}", word('S', rpm)?),
+        None => "M3".to_owned(),
+    }];
+    if spin_up_dwell_s > 0.0 && spin_up_dwell_s.is_finite() {
+        lines.push(format!("G4 {}", word('P', spin_up_dwell_s)?));
+    }
+    Ok(lines)
 }
 
 /// The first line from `from` on that has axis words but no G0/G1 (and no G92 to claim

@@ -22,6 +22,8 @@ struct Script {
     hang_after: Option<usize>,
     /// Close the connection once this many lines have executed.
     close_after: Option<usize>,
+    /// Never answer a status request (`?`).
+    no_status: bool,
 }
 
 /// The controller's side of the link: `Fake` for the protocol, plus time per line, a
@@ -44,7 +46,12 @@ async fn controller<S: AsyncRead + AsyncWrite + Unpin>(
                     Ok(0) | Err(_) => break,
                     Ok(n) => n,
                 };
-                let bytes = &buffer[..n];
+                let bytes: Vec<u8> = buffer[..n]
+                    .iter()
+                    .copied()
+                    .filter(|&b| !(script.no_status && b == b'?'))
+                    .collect();
+                let bytes = &bytes[..];
                 let running = fake.buffered() > 0 || run_reports > 0;
                 if bytes.contains(&b'?') && fake.buffered() == 0 && run_reports > 0 {
                     run_reports -= 1;
@@ -405,6 +412,85 @@ async fn a_silent_controller_times_out_with_a_feed_hold() {
 }
 
 #[tokio::test(start_paused = true)]
+async fn a_stop_holds_and_ends_once_the_controller_reports_the_hold_complete() {
+    let (control, receiver) = crate::transport::control();
+    let script = Script {
+        line_time: Duration::from_millis(100),
+        ..Script::default()
+    };
+    let options = StreamOptions {
+        commands: Some(receiver),
+        ..options()
+    };
+    let caller = tokio::spawn(async move {
+        tokio::time::sleep(Duration::from_millis(500)).await;
+        assert!(control.stop("SIGINT"));
+    });
+    let run = run(moves(40), options, Fake::grblhal(1024), script).await;
+    caller.await.unwrap();
+    let outcome = run.result.unwrap();
+    assert!(matches!(
+        &outcome.ending,
+        Ending::Stopped(StopReason::Interrupted { reason }) if reason == "SIGINT"
+    ));
+    // The hold went out, nothing after it, and the run ended on a report of it complete.
+    assert_eq!(
+        run.fake
+            .realtime
+            .iter()
+            .filter(|&&b| b != b'?')
+            .collect::<Vec<_>>(),
+        [&b'!']
+    );
+    assert_eq!(
+        statuses(&run.records).last().map(|s| s.1.as_str()),
+        Some("Hold:0")
+    );
+    let resume = outcome.resume.unwrap();
+    assert!(resume.line_index < 40);
+    let n = run.records.len();
+    assert!(matches!(
+        run.records[n - 2].event,
+        log::Event::ResumeAt { line, .. } if line == resume.line_index + 1
+    ));
+    assert_start_and_end(&run.records, false);
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_stop_without_a_report_of_the_stand_ends_when_the_wait_runs_out_and_says_so() {
+    let (control, receiver) = crate::transport::control();
+    let script = Script {
+        line_time: Duration::from_millis(100),
+        no_status: true,
+        ..Script::default()
+    };
+    let options = StreamOptions {
+        commands: Some(receiver),
+        no_progress_timeout: Some(Duration::from_secs(3)),
+        ..options()
+    };
+    let caller = tokio::spawn(async move {
+        tokio::time::sleep(Duration::from_millis(500)).await;
+        assert!(control.stop("SIGTERM"));
+    });
+    let run = run(moves(40), options, Fake::grblhal(1024), script).await;
+    caller.await.unwrap();
+    let outcome = run.result.unwrap();
+    assert!(matches!(
+        outcome.ending,
+        Ending::Stopped(StopReason::Interrupted { .. })
+    ));
+    // The wait is the no-progress timeout, counted from the stop.
+    let wall = outcome.wall_time.as_secs_f64();
+    assert!((3.5..4.0).contains(&wall), "{wall}");
+    assert!(run.records.iter().any(|r| matches!(
+        &r.event,
+        log::Event::Message { text } if text.contains("did not report the machine at rest")
+    )));
+    assert_start_and_end(&run.records, false);
+}
+
+#[tokio::test(start_paused = true)]
 async fn the_caller_holds_resumes_and_resets() {
     let (control, receiver) = crate::transport::control();
     let script = Script {
@@ -551,6 +637,11 @@ fn link_utilization_is_bits_over_capacity() {
     );
     assert_eq!(link_utilization(100, 115_200, Duration::ZERO), None);
     assert_eq!(link_utilization(100, 0, Duration::from_secs(1)), None);
+    // More bits than the rate carries: no serial line at that rate, so no figure.
+    assert_eq!(
+        link_utilization(11_521, 115_200, Duration::from_secs(1)),
+        None
+    );
 }
 
 /// The real serial path: a pseudo-terminal pair opened by tokio-serial, in real time.
