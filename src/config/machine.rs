@@ -271,6 +271,15 @@ impl MachineProfile {
         )
     }
 
+    /// `machine-profiles/linuxcnc-lathe.toml`, built in: the machine `whirl dry-run
+    /// --controller linuxcnc` simulates unless told another.
+    pub fn builtin_linuxcnc() -> Result<MachineProfile, ProfileError> {
+        MachineProfile::from_toml(
+            include_str!("../../machine-profiles/linuxcnc-lathe.toml"),
+            "machine-profiles/linuxcnc-lathe.toml (built in)",
+        )
+    }
+
     /// Parses and validates a profile; `origin` names the text's source in errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<MachineProfile, ProfileError> {
         let profile: MachineProfile = toml::from_str(text).map_err(|error| ProfileError::Toml {
@@ -368,7 +377,8 @@ impl MachineProfile {
 
     /// Whether `connection` fits this machine: a serial connection streams grbl's
     /// protocol, so it needs a grblHAL dialect, and its receive buffer must hold the
-    /// longest line with its line end (and the ring buffer's empty slot); CAN drives'
+    /// longest line with its line end (and the ring buffer's empty slot); LinuxCNC runs
+    /// only LinuxCNC's G-code; CAN drives'
     /// counts must hold X's and Z's travel in INTEGER32 (their target position, 607Ah).
     fn check_connection(&self, connection: &Connection) -> Result<(), (String, String)> {
         let invalid = |key: &str, problem: String| (format!("connection.{key}"), problem);
@@ -396,6 +406,16 @@ impl MachineProfile {
                     ));
                 }
             }
+        }
+        if matches!(connection, Connection::Linuxcnc(_)) && self.dialect != Dialect::LinuxCnc {
+            return Err(invalid(
+                "transport",
+                format!(
+                    "\"linuxcnc\" has LinuxCNC run the program, which needs the linuxcnc \
+                     dialect (dialect is {:?})",
+                    self.dialect
+                ),
+            ));
         }
         if let Some(drives) = connection.drives() {
             for (slot, (axis, travel)) in [("X", &self.axes.x), ("Z", &self.axes.z)]

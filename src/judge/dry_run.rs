@@ -178,6 +178,18 @@ pub enum DryRunError {
     /// The CAN transport.
     #[error(transparent)]
     CanStream(#[from] crate::transport::can::CanError),
+    /// LinuxCNC's simulation.
+    #[error(transparent)]
+    LinuxcncSim(#[from] crate::judge::linuxcnc::LinuxcncSimError),
+    /// The LinuxCNC transport.
+    #[error(transparent)]
+    LinuxcncRun(#[from] crate::transport::linuxcnc::LinuxcncError),
+    /// LinuxCNC is a controller, not a way to the built-in simulator.
+    #[error(
+        "the built-in simulator is a grblHAL controller and does not run LinuxCNC's \
+         transport: dry-run with --controller linuxcnc"
+    )]
+    LinuxcncTransport,
     /// A transport the simulator does not serve.
     #[error(
         "the simulated drives are reached through an slcan adapter, not a socketcan \
@@ -360,6 +372,7 @@ pub fn preflight(
     posted.check(machine)?;
     match transport {
         TransportKind::Can => Err(DryRunError::Socketcan),
+        TransportKind::Linuxcnc => Err(DryRunError::LinuxcncTransport),
         // The adapter's port is the simulator's own; the drives are the profile's.
         TransportKind::CanSlcan => Ok(Some(can_bus(machine)?)),
         TransportKind::Serial | TransportKind::ModbusTcp | TransportKind::ModbusRtu => Ok(None),

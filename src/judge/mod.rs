@@ -12,8 +12,10 @@
 pub mod cycles;
 pub mod dry_run;
 pub mod guard;
+pub mod linuxcnc;
 pub mod measure;
 pub mod plots;
+pub mod sampled;
 pub mod simulator;
 pub mod svg;
 pub mod verify;

@@ -20,7 +20,10 @@ pub struct Budget {
     pub scallop: f64,
     /// Undercut left between the hits of successive inserts.
     pub cusp: f64,
-    /// The controller's path blending (LinuxCNC G64 P), 0 for exact-path controllers.
+    /// The controller's path blending, 0 for exact-path controllers. On LinuxCNC, written as
+    /// `G64 P`, which bounds its arc blends; the parabolic blends of linked moves, which P
+    /// does not bound, are held to it by capping their speed
+    /// ([`crate::program::blending::cap_linked_feeds`]).
     pub blend: f64,
     /// Rounding of the written numbers and of the controller's number type.
     pub rounding: f64,

@@ -1,8 +1,8 @@
 //! `whirl plan`: job + machine → a checked program and its report.
 //!
 //! The arrows of the data flow, in order: profile (validated) → linkage table X(ψ) →
-//! interference check → error budget → nodes → path → limits. Every step that can refuse does
-//! so before anything is written.
+//! interference check → error budget → nodes → path → (LinuxCNC) blend-speed cap → limits.
+//! Every step that can refuse does so before anything is written.
 
 pub mod budget;
 pub mod interference;
@@ -14,12 +14,13 @@ pub mod table;
 mod tests;
 
 use crate::config::job::{depth_refusal, show_figure, show_number, Job};
-use crate::config::machine::MachineProfile;
+use crate::config::machine::{Dialect, MachineProfile};
 use crate::geometry::linkage::{Linkage, Ring, Whirling};
 use crate::geometry::profile::{ConcaveStretch, Profile, Rounding};
 use crate::plan::table::{Table, TableError};
 use crate::post::gcode::format::{decimals_for, MAX_DECIMALS};
 use crate::post::gcode::writer::{self, PostSettings};
+use crate::program::blending::{self, Accels};
 use crate::program::limits::{check_limits, LimitError};
 use crate::program::timing::cycle_time_s;
 use crate::program::Program;
@@ -58,8 +59,18 @@ pub struct Report {
     pub scallop_mm: f64,
     /// Insert cusp, mm.
     pub cusp_mm: f64,
-    /// Controller blending allowed, mm.
+    /// Controller blending allowed, mm. On LinuxCNC it is held by capping the blend speed
+    /// of linked moves (`blend_slowed_moves`), not by `G64 P`, which does not bound the
+    /// parabolic blends of moves that turn C ([`crate::program::blending`]).
     pub blend_mm: f64,
+    /// Linked moves slowed so that LinuxCNC's parabolic blends stay within `blend_mm`; 0 on
+    /// controllers that do not blend.
+    pub blend_slowed_moves: usize,
+    /// The largest corner cut LinuxCNC's blends are predicted to make once capped (at most
+    /// `blend_mm` / [`blending::MARGIN`]), mm; 0 on controllers that do not blend.
+    pub blend_predicted_mm: f64,
+    /// Cycle time the blend-speed cap added (counted in `cycle_time_s`), s.
+    pub blend_time_added_s: f64,
     /// Rounding of the numbers written and held by the controller, mm.
     pub rounding_mm: f64,
     /// Material left in concave stretches tighter than the nose but too shallow to refuse
@@ -69,7 +80,7 @@ pub struct Report {
     pub max_error_mm: f64,
     /// Δ, mm.
     pub delta_mm: f64,
-    /// Estimated cycle time (junction slow-downs not counted), s.
+    /// Estimated cycle time (junction slow-downs not counted; the blend-speed cap counted), s.
     pub cycle_time_s: f64,
     /// Installation angle used, degrees.
     pub installation_angle_deg: f64,
@@ -83,6 +94,24 @@ pub struct Report {
     pub decimals: [u32; 2],
     /// Lines of program text.
     pub lines: usize,
+}
+
+impl Report {
+    /// One line on LinuxCNC's blending for the console, `None` for a controller that does
+    /// not blend: the share, and that it is held by capping the blend speed.
+    pub fn blending_summary(&self) -> Option<String> {
+        (self.blend_mm > 0.0).then(|| {
+            format!(
+                "LinuxCNC blending held within {} mm by capping the blend speed: {} of {} \
+                 linked moves slowed, +{:.1} s; largest predicted corner cut {:.5} mm",
+                show_figure(self.blend_mm),
+                self.blend_slowed_moves,
+                self.segments,
+                self.blend_time_added_s,
+                self.blend_predicted_mm,
+            )
+        })
+    }
 }
 
 /// Why a job cannot be planned.
@@ -371,7 +400,16 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         ring.nose,
         delta
     );
-    let path = path::build(&nodes, &spec, &title);
+    let mut path = path::build(&nodes, &spec, &title);
+    // LinuxCNC blends consecutive linked moves parabolically, unbounded by G64 P: slow them
+    // until its blends are within the blend share. Slowing only lowers speeds, so the limits
+    // are checked after.
+    let capped = match (machine.dialect, machine.blend_tolerance_mm) {
+        (Dialect::LinuxCnc, Some(_)) => {
+            blending::cap_linked_feeds(&mut path.program, Accels::of(machine), blend)
+        }
+        _ => blending::Capped::default(),
+    };
     check_limits(&path.program, machine).map_err(|limit| PlanError::Limits { limit })?;
     let settings = PostSettings {
         dialect: machine.dialect,
@@ -389,6 +427,9 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         scallop_mm: scallop,
         cusp_mm: cusp,
         blend_mm: blend,
+        blend_slowed_moves: capped.slowed,
+        blend_predicted_mm: capped.max_deviation_mm,
+        blend_time_added_s: capped.added_s,
         rounding_mm: rounding,
         concave_mm: concave,
         max_error_mm: nodes.max_error + tolerance + scallop + cusp + blend + rounding + concave,

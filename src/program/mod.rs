@@ -13,6 +13,7 @@
 //! - [`limits`]: a program checked against a machine's travel, speeds and spindle.
 //! - [`timing`]: how long each move takes, and the program's cycle time.
 
+pub mod blending;
 pub mod limits;
 pub mod reentry;
 pub mod timing;
@@ -140,6 +141,12 @@ impl Program {
             moves: self.moves.iter().enumerate(),
             position: start,
         }
+    }
+
+    /// Where the program leaves the machine, X, Z, C, when every axis is positioned.
+    pub fn end_position(&self) -> Option<[f64; 3]> {
+        let end = self.steps(Position::UNKNOWN).last()?.to;
+        Some([end.x?, end.z?, end.c?])
     }
 }
 

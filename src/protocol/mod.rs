@@ -9,7 +9,9 @@
 //! - [`grbl`]: a G-code program streamed to grbl/grblHAL by character counting.
 //! - [`modbus`]: segments through the register ring of `docs/modbus.md`.
 //! - [`canopen`]: CANopen (CiA 301) and CiA 402 drives, through slcan or socketcan.
+//! - [`linuxcnc`]: a program run on LinuxCNC through its remote shell, `linuxcncrsh`.
 
 pub mod canopen;
 pub mod grbl;
+pub mod linuxcnc;
 pub mod modbus;

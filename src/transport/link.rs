@@ -14,7 +14,7 @@ use thiserror::Error;
 
 use super::can::CanLink;
 use super::modbus::{ModbusLink, ModbusOptions};
-use crate::config::connection::{Connection, DriveSettings};
+use crate::config::connection::{Connection, DriveSettings, LinuxcncSettings};
 use crate::config::machine::MachineProfile;
 use crate::protocol::canopen::slcan::Bitrate;
 
@@ -31,20 +31,23 @@ pub enum TransportKind {
     CanSlcan,
     /// CiA 402 drives on a SocketCAN interface.
     Can,
+    /// A LinuxCNC machine through `linuxcncrsh`.
+    Linuxcnc,
 }
 
 impl TransportKind {
     /// Every transport, in the profile's order.
-    pub const ALL: [TransportKind; 5] = [
+    pub const ALL: [TransportKind; 6] = [
         TransportKind::Serial,
         TransportKind::ModbusTcp,
         TransportKind::ModbusRtu,
         TransportKind::CanSlcan,
         TransportKind::Can,
+        TransportKind::Linuxcnc,
     ];
 
     /// The name a profile and the log use: `serial`, `modbus-tcp`, `modbus-rtu`,
-    /// `can-slcan`, `can`.
+    /// `can-slcan`, `can`, `linuxcnc`.
     pub fn name(self) -> &'static str {
         match self {
             TransportKind::Serial => "serial",
@@ -52,6 +55,7 @@ impl TransportKind {
             TransportKind::ModbusRtu => "modbus-rtu",
             TransportKind::CanSlcan => "can-slcan",
             TransportKind::Can => "can",
+            TransportKind::Linuxcnc => "linuxcnc",
         }
     }
 
@@ -63,6 +67,7 @@ impl TransportKind {
             Connection::ModbusRtu(_) => TransportKind::ModbusRtu,
             Connection::CanSlcan(_) => TransportKind::CanSlcan,
             Connection::Can(_) => TransportKind::Can,
+            Connection::Linuxcnc(_) => TransportKind::Linuxcnc,
         }
     }
 }
@@ -99,6 +104,8 @@ pub enum Link {
         /// The drives: nodes, cycle, scales, supervision.
         drives: DriveSettings,
     },
+    /// A LinuxCNC machine's `linuxcncrsh`.
+    Linuxcnc(LinuxcncSettings),
 }
 
 /// Why a link cannot be made from what was given.
@@ -150,12 +157,19 @@ impl Link {
             Some(Connection::ModbusRtu(s)) => (Some(s.port.clone()), Some(s.baud)),
             Some(Connection::CanSlcan(s)) => (Some(s.port.clone()), Some(s.baud)),
             Some(Connection::Can(s)) => (Some(s.interface.clone()), None),
+            Some(Connection::Linuxcnc(s)) => (Some(s.address.clone()), None),
             None => (None, None),
         };
-        let port = port.or(profile_port).ok_or_else(|| LinkError::NoPort {
-            machine: machine.name.clone(),
-            transport: kind,
-        })?;
+        // LinuxCNC's remote shell has a well-known home: this host, port 5007.
+        let default_port =
+            (kind == TransportKind::Linuxcnc).then(|| LinuxcncSettings::default().address);
+        let port = port
+            .or(profile_port)
+            .or(default_port)
+            .ok_or_else(|| LinkError::NoPort {
+                machine: machine.name.clone(),
+                transport: kind,
+            })?;
         let baud = baud.or(profile_baud).unwrap_or(115_200);
         let defaults = ModbusOptions::default();
         Ok(match kind {
@@ -197,6 +211,15 @@ impl Link {
                 link: CanLink::SocketCan { interface: port },
                 drives: can_bus(machine)?.0,
             },
+            // The profile's passwords, power-on permission and program folder, at the
+            // address given.
+            TransportKind::Linuxcnc => Link::Linuxcnc(LinuxcncSettings {
+                address: port,
+                ..match same {
+                    Some(Connection::Linuxcnc(s)) => s.clone(),
+                    _ => LinuxcncSettings::default(),
+                }
+            }),
         })
     }
 
@@ -214,6 +237,7 @@ impl Link {
                 ..
             } => TransportKind::CanSlcan,
             Link::Can { .. } => TransportKind::Can,
+            Link::Linuxcnc(_) => TransportKind::Linuxcnc,
         }
     }
 }
@@ -240,6 +264,7 @@ impl fmt::Display for Link {
             Link::Serial { port, baud } => write!(f, "{port} at {baud} baud"),
             Link::Modbus { link, .. } => write!(f, "{link}"),
             Link::Can { link, .. } => write!(f, "{link}"),
+            Link::Linuxcnc(s) => write!(f, "linuxcncrsh at {}", s.address),
         }
     }
 }

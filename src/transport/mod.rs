@@ -20,10 +20,13 @@
 //!   TCP or RTU.
 //! - [`can`]: set-points to three CiA 402 drives, through an slcan adapter on a serial line
 //!   or a socketcan interface.
+//! - [`linuxcnc`]: a G-code program LinuxCNC opens and runs, through `linuxcncrsh`.
+//! - [`linuxcnc`]: a G-code program LinuxCNC opens and runs, through `linuxcncrsh`.
 
 pub mod can;
 pub mod control;
 pub mod link;
+pub mod linuxcnc;
 pub mod modbus;
 pub mod progress;
 pub mod run;

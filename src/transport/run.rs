@@ -12,6 +12,7 @@ use thiserror::Error;
 use super::can::{stream_can, CanClock, CanError, CanOptions, CanOutcome};
 use super::control::Commands;
 use super::link::Link;
+use super::linuxcnc::{run_linuxcnc, LinuxcncError, LinuxcncOptions, LinuxcncOutcome};
 use super::modbus::{stream_modbus, ModbusError, ModbusOptions, ModbusOutcome};
 use super::progress::ProgressFn;
 use super::serial::{stream_port, SerialError, StreamOptions, StreamOutcome};
@@ -127,6 +128,8 @@ pub enum Outcome {
     Modbus(ModbusOutcome),
     /// Set-points to CiA 402 drives.
     Can(CanOutcome),
+    /// A program LinuxCNC ran.
+    Linuxcnc(LinuxcncOutcome),
 }
 
 impl Outcome {
@@ -136,6 +139,7 @@ impl Outcome {
             Outcome::Serial(o) => o.completed(),
             Outcome::Modbus(o) => o.completed,
             Outcome::Can(o) => o.completed,
+            Outcome::Linuxcnc(o) => o.completed(),
         }
     }
 
@@ -145,6 +149,8 @@ impl Outcome {
             Outcome::Serial(o) => o.resume.as_ref().map(Resume::from),
             Outcome::Modbus(o) => o.resume_line.map(Resume::at),
             Outcome::Can(o) => o.resume_line.map(Resume::at),
+            // LinuxCNC keeps its place in the program: a run is resumed at its console.
+            Outcome::Linuxcnc(_) => None,
         }
     }
 
@@ -171,6 +177,7 @@ impl Outcome {
                 Some(reason) => format!("the drives stopped the job: {reason}"),
                 None => "the job ended before the drives settled".into(),
             }),
+            Outcome::Linuxcnc(o) => o.stop(),
         }
     }
 
@@ -201,6 +208,13 @@ impl Outcome {
                 o.setpoints,
                 o.session_time.as_secs_f64(),
                 o.late_cycles
+            ),
+            Outcome::Linuxcnc(o) => format!(
+                "{name}: LinuxCNC ran to line {} of {} over {link} in {:.1} s ({} polls)",
+                o.furthest_line,
+                o.lines_total,
+                o.wall_time.as_secs_f64(),
+                o.polls
             ),
         }
     }
@@ -275,6 +289,16 @@ pub enum StreamError {
     /// The CAN transport.
     #[error(transparent)]
     Can(#[from] CanError),
+    /// The LinuxCNC transport.
+    #[error(transparent)]
+    Linuxcnc(#[from] LinuxcncError),
+    /// `--resume-at` on LinuxCNC, which resumes at its own console.
+    #[error(
+        "LinuxCNC resumes a held or stopped program itself (its run-from-line, at its \
+         console), where it keeps its place; whirl does not re-enter a LinuxCNC run at line {}",
+        .0 + 1
+    )]
+    ResumeOnLinuxcnc(usize),
 }
 
 impl StreamError {
@@ -349,6 +373,9 @@ pub async fn stream(
     log: &mut ExecLog,
 ) -> Result<Outcome, StreamError> {
     posted.check(machine)?;
+    if let (Link::Linuxcnc(_), Some(line)) = (link, options.resume_at) {
+        return Err(StreamError::ResumeOnLinuxcnc(line));
+    }
     let name = posted.name.clone();
     let from = options.resume_at.map(|line| posted.first_move_at(line));
     let approach = match (options.resume_at, from) {
@@ -431,12 +458,23 @@ pub async fn stream(
                 outcome.resume_line = outcome.resume_move.map(|at| moves.line_of(at));
                 Outcome::Can(outcome)
             }
+            Link::Linuxcnc(settings) => {
+                let options = LinuxcncOptions {
+                    program: name,
+                    end_position: posted.program.end_position(),
+                    stall_timeout: options.stall_timeout,
+                    on_progress: options.progress,
+                    commands: Some(commands),
+                    ..LinuxcncOptions::default()
+                };
+                Outcome::Linuxcnc(run_linuxcnc(settings, &posted.lines, options, log).await?)
+            }
         })
     }
     .await;
     // The serial transport logs where to resume before its End; the fieldbus ones know
     // moves, not lines, so the resume line they end at is logged here, beside it.
-    if !matches!(link, Link::Serial { .. }) {
+    if matches!(link, Link::Modbus { .. } | Link::Can { .. }) {
         let resume = match &result {
             Ok(outcome) => outcome.resume(),
             Err(error) => error.resume(),

@@ -91,6 +91,8 @@ fn held(transport: TransportKind) -> fn(&[Record]) -> bool {
         TransportKind::CanSlcan | TransportKind::Can => {
             |r| has_message(r, "the drives stand on the path")
         }
+        // LinuxCNC's program state (its own test: linuxcnc.rs).
+        TransportKind::Linuxcnc => |r| has_status(r, "PAUSED"),
     }
 }
 

@@ -55,8 +55,9 @@ pub(crate) enum Command {
         #[arg(long)]
         port: Option<String>,
         /// G-code over a serial line, segments through the Modbus register map
-        /// (docs/modbus.md) over TCP or RTU, or set-points to CiA 402 drives over CAN;
-        /// default: the machine profile's `[connection]`, else serial.
+        /// (docs/modbus.md) over TCP or RTU, set-points to CiA 402 drives over CAN, or a
+        /// program LinuxCNC runs (linuxcncrsh, HOST:PORT as --port, default
+        /// 127.0.0.1:5007); default: the machine profile's `[connection]`, else serial.
         #[arg(long, value_enum)]
         transport: Option<Transport>,
         /// Baud rate of the serial line, 300 to 10000000; default: the profile's, else
@@ -120,6 +121,13 @@ pub(crate) enum Command {
         /// segments through the Modbus register map (docs/modbus.md) over TCP or RTU.
         #[arg(long, value_enum, default_value_t = Transport::Serial)]
         transport: Transport,
+        /// The controller that runs the program: the built-in simulator, or LinuxCNC's own
+        /// simulation (Debian's linuxcnc-uspace, started headless for the run; machine
+        /// profile default machine-profiles/linuxcnc-lathe.toml). For LinuxCNC,
+        /// --time-scale is its clock's speed-up, 1 to 100 (default 50 as root, with
+        /// libfaketime; otherwise 1, real time).
+        #[arg(long, value_enum, default_value_t = Controller::WhirlSim)]
+        controller: Controller,
     },
     /// Read executed-path logs.
     Log {
@@ -159,6 +167,17 @@ pub(crate) enum Transport {
     CanSlcan,
     /// CiA 402 drives on a socketcan interface.
     Can,
+    /// A LinuxCNC machine through linuxcncrsh: it opens and runs the program.
+    Linuxcnc,
+}
+
+/// The controller a dry run runs the program on.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum Controller {
+    /// whirl-sim, the built-in grblHAL simulator.
+    WhirlSim,
+    /// LinuxCNC's simulation, through linuxcncrsh.
+    Linuxcnc,
 }
 
 impl From<Transport> for TransportKind {
@@ -169,6 +188,7 @@ impl From<Transport> for TransportKind {
             Transport::ModbusRtu => TransportKind::ModbusRtu,
             Transport::CanSlcan => TransportKind::CanSlcan,
             Transport::Can => TransportKind::Can,
+            Transport::Linuxcnc => TransportKind::Linuxcnc,
         }
     }
 }

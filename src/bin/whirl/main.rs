@@ -9,16 +9,17 @@ mod interrupt;
 mod numbers;
 mod terminal;
 
-use anyhow::{Context, Result};
-use args::{Cli, Command, LogCommand, SweepTool};
+use anyhow::{bail, Context, Result};
+use args::{Cli, Command, Controller, LogCommand, SweepTool};
 use clap::Parser;
 use files::Files;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use terminal::say;
 use whirl::config::job::Job;
-use whirl::config::machine::MachineProfile;
+use whirl::config::machine::{Dialect, MachineProfile};
 use whirl::judge::dry_run::{self, DryRunOptions};
+use whirl::judge::linuxcnc::LinuxcncDryRunOptions;
 use whirl::log::ExecLog;
 use whirl::transport::{self, Link, Posted, Resume, RunOptions, TransportKind};
 
@@ -113,6 +114,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             baud,
             rx,
             transport,
+            controller,
         } => {
             Files::new()
                 .output("--report", report.as_deref())
@@ -135,7 +137,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 log,
                 report,
             };
-            dry_run(paths, options)
+            dry_run(paths, options, controller)
         }
         Command::Log { command } => {
             match command {
@@ -354,8 +356,23 @@ struct DryRunPaths {
 
 /// `whirl dry-run`: the job's program (or one given for it) on the simulator, refused
 /// before the log is opened if it cannot run; the exit code says whether it was within Δ.
-fn dry_run(paths: DryRunPaths, mut options: DryRunOptions) -> Result<ExitCode> {
-    let machine = load_machine(paths.machine.as_deref())?;
+fn dry_run(
+    paths: DryRunPaths,
+    mut options: DryRunOptions,
+    controller: Controller,
+) -> Result<ExitCode> {
+    let machine = match (controller, paths.machine.as_deref()) {
+        (Controller::Linuxcnc, None) => MachineProfile::builtin_linuxcnc()?,
+        (_, path) => load_machine(path)?,
+    };
+    if controller == Controller::Linuxcnc && machine.dialect != Dialect::LinuxCnc {
+        bail!(
+            "--controller linuxcnc runs LinuxCNC's G-code, and machine profile \"{}\" is \
+             written for {:?}: give a LinuxCNC profile (machine-profiles/linuxcnc-lathe.toml)",
+            machine.name,
+            machine.dialect
+        );
+    }
     let job = Job::load(&paths.job)?;
     let (name, text) = match &paths.program {
         Some(path) => (
@@ -372,14 +389,36 @@ fn dry_run(paths: DryRunPaths, mut options: DryRunOptions) -> Result<ExitCode> {
     };
     let posted = Posted::read(name.as_str(), &text, &machine)
         .with_context(|| format!("cannot read {name}"))?;
-    dry_run::preflight(&machine, &posted, options.transport)?;
+    match controller {
+        Controller::WhirlSim => {
+            dry_run::preflight(&machine, &posted, options.transport)?;
+        }
+        Controller::Linuxcnc => posted.check(&machine)?,
+    }
     let mut log = match &paths.log {
         Some(path) => ExecLog::append(path)?,
         None => ExecLog::discard(),
     };
     let bar = terminal::progress_bar();
     options.progress = bar.as_ref().map(terminal::Bar::callback);
-    let r = runtime()?.block_on(dry_run::dry_run(&job, &machine, &posted, options, &mut log));
+    let r = match controller {
+        Controller::WhirlSim => {
+            runtime()?.block_on(dry_run::dry_run(&job, &machine, &posted, options, &mut log))
+        }
+        Controller::Linuxcnc => {
+            let options = LinuxcncDryRunOptions {
+                speed_up: options
+                    .time_scale
+                    .unwrap_or_else(whirl::judge::linuxcnc::default_speed_up),
+                stall_timeout: options.stall_timeout,
+                progress: options.progress,
+                commands: options.commands,
+            };
+            runtime()?.block_on(whirl::judge::linuxcnc::dry_run(
+                &job, &machine, &posted, options, &mut log,
+            ))
+        }
+    };
     if let Some(bar) = bar {
         bar.finish();
     }

@@ -15,6 +15,7 @@
 //! | `modbus-rtu` | the same over Modbus RTU (a serial line, 8N1) | [`ModbusRtuSettings`] |
 //! | `can-slcan` | three CiA 402 drives through a serial (slcan) CAN adapter | [`SlcanSettings`] |
 //! | `can` | the same on a SocketCAN interface | [`SocketCanSettings`] |
+//! | `linuxcnc` | a LinuxCNC machine through `linuxcncrsh`, G-code it opens and runs | [`LinuxcncSettings`] |
 //!
 //! The CAN kinds share their drives' settings, a nested `[connection.drives]` table
 //! ([`DriveSettings`]). Every table denies unknown keys (a key of another transport
@@ -49,6 +50,7 @@
 //! [`can`](DriveSettings).
 
 mod can;
+mod linuxcnc;
 mod modbus;
 mod serial;
 
@@ -56,6 +58,7 @@ pub use can::{
     DriveMode, DriveSettings, SlcanSettings, SocketCanSettings, CAN_BITRATES, MAX_CYCLE_US,
     MIN_CYCLE_US,
 };
+pub use linuxcnc::LinuxcncSettings;
 pub use modbus::{ModbusRtuSettings, ModbusTcpSettings, MODBUS_RTU_BAUDS};
 pub use serial::SerialSettings;
 
@@ -82,6 +85,8 @@ pub enum Connection {
     CanSlcan(SlcanSettings),
     /// `can`: CiA 402 drives on a SocketCAN interface.
     Can(SocketCanSettings),
+    /// `linuxcnc`: a LinuxCNC machine through `linuxcncrsh`.
+    Linuxcnc(LinuxcncSettings),
 }
 
 /// The longest answer timeout or spin-up hold, ms: anything longer is taken for a unit
@@ -112,7 +117,14 @@ pub(super) fn invalid(key: &str, problem: impl Into<String>) -> SettingError {
 }
 
 /// The `transport` values, in [`Connection`]'s order.
-pub const TRANSPORTS: [&str; 5] = ["serial", "modbus-tcp", "modbus-rtu", "can-slcan", "can"];
+pub const TRANSPORTS: [&str; 6] = [
+    "serial",
+    "modbus-tcp",
+    "modbus-rtu",
+    "can-slcan",
+    "can",
+    "linuxcnc",
+];
 
 impl<'de> Deserialize<'de> for Connection {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
@@ -161,6 +173,7 @@ impl<'de> Deserialize<'de> for Connection {
             "modbus-rtu" => settings(table, &transport).map(Connection::ModbusRtu),
             "can-slcan" => settings(table, &transport).map(Connection::CanSlcan),
             "can" => settings(table, &transport).map(Connection::Can),
+            "linuxcnc" => settings(table, &transport).map(Connection::Linuxcnc),
             other => Err(D::Error::custom(format!(
                 "connection.transport: unknown transport `{other}`, expected one of {}",
                 quoted(&TRANSPORTS)
@@ -179,7 +192,7 @@ fn quoted(names: &[&str]) -> String {
 
 impl Connection {
     /// The transport's name as the profile, the log and the command line spell it:
-    /// `serial`, `modbus-tcp`, `modbus-rtu`, `can-slcan` or `can`.
+    /// `serial`, `modbus-tcp`, `modbus-rtu`, `can-slcan`, `can` or `linuxcnc`.
     pub fn transport_name(&self) -> &'static str {
         match self {
             Connection::Serial(_) => "serial",
@@ -187,6 +200,7 @@ impl Connection {
             Connection::ModbusRtu(_) => "modbus-rtu",
             Connection::CanSlcan(_) => "can-slcan",
             Connection::Can(_) => "can",
+            Connection::Linuxcnc(_) => "linuxcnc",
         }
     }
 
@@ -210,6 +224,7 @@ impl Connection {
             Connection::ModbusRtu(rtu) => rtu.validate(),
             Connection::CanSlcan(slcan) => slcan.validate(),
             Connection::Can(can) => can.validate(),
+            Connection::Linuxcnc(linuxcnc) => linuxcnc.validate(),
         }
     }
 }

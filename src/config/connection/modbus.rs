@@ -55,7 +55,7 @@ fn default_timeout_ms() -> u32 {
 }
 
 /// `host:port` with a port 1 to 65 535, an IPv6 address in brackets.
-fn host_port(key: &str, address: &str) -> Result<(), SettingError> {
+pub(super) fn host_port(key: &str, address: &str) -> Result<(), SettingError> {
     let bad = |why: &str| {
         invalid(
             key,
