@@ -352,8 +352,11 @@ fn a_linuxcnc_plan_slows_its_linked_moves_until_every_blend_is_within_the_share(
         assert!(reach <= half, "line {line}: reaches {reach}° of {half}°");
     }
     let largest = capped.iter().map(|c| c.0).fold(0.0, f64::max);
+    // The posted words are rounded (X, Z to the plan's decimals, F down to six digits), so
+    // the corners read back differ from the planned ones by that rounding: 1 % of the share
+    // (10 nm) covers it.
     assert!(
-        (largest - report.blend_predicted_mm).abs() < 1e-3 * share,
+        (largest - report.blend_predicted_mm).abs() < 1e-2 * share,
         "{largest} mm, reported {} mm",
         report.blend_predicted_mm
     );
