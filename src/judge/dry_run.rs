@@ -178,12 +178,6 @@ pub enum DryRunError {
     /// The CAN transport.
     #[error(transparent)]
     CanStream(#[from] crate::transport::can::CanError),
-    /// LinuxCNC's simulation.
-    #[error(transparent)]
-    LinuxcncSim(#[from] crate::judge::linuxcnc::LinuxcncSimError),
-    /// The LinuxCNC transport.
-    #[error(transparent)]
-    LinuxcncRun(#[from] crate::transport::linuxcnc::LinuxcncError),
     /// LinuxCNC is a controller, not a way to the built-in simulator.
     #[error(
         "the built-in simulator is a grblHAL controller and does not run LinuxCNC's \

@@ -36,11 +36,14 @@ use std::time::{Duration, Instant};
 use crate::config::connection::LinuxcncSettings;
 use crate::config::job::Job;
 use crate::config::machine::{MachineProfile, XMode};
-use crate::judge::dry_run::{DryRunError, DryRunReport};
+use crate::judge::dry_run::DryRunReport;
 use crate::judge::guard::DeltaGuard;
 use crate::judge::sampled::{SampledPath, SampledRun};
+use crate::judge::verify::CheckError;
 use crate::log::ExecLog;
+use crate::log::LogError;
 use crate::program::Move;
+use crate::transport::linuxcnc::LinuxcncError;
 use crate::transport::linuxcnc::{run_linuxcnc, LinuxcncOptions, LinuxcncOutcome};
 use crate::transport::{control, Commands, Posted, ProgressFn};
 
@@ -113,6 +116,15 @@ pub enum LinuxcncSimError {
     /// The sampler failed.
     #[error("LinuxCNC's sampler: {0}")]
     Sampler(String),
+    /// The job's groove cannot be measured.
+    #[error("the Δ guard: {0}")]
+    Guard(CheckError),
+    /// The LinuxCNC transport.
+    #[error(transparent)]
+    Run(#[from] LinuxcncError),
+    /// The executed-path log.
+    #[error(transparent)]
+    Log(#[from] LogError),
 }
 
 /// The configuration files of a LinuxCNC simulation of `machine`, as (name, text):
@@ -475,7 +487,7 @@ pub async fn dry_run(
     posted: &Posted,
     options: LinuxcncDryRunOptions,
     log: &mut ExecLog,
-) -> Result<DryRunReport, DryRunError> {
+) -> Result<DryRunReport, LinuxcncSimError> {
     let speed = options.speed_up;
     if !(speed == 1.0 || (1.0..=MAX_SPEED_UP).contains(&speed)) {
         return Err(LinuxcncSimError::SpeedUp(format!(
@@ -489,7 +501,7 @@ pub async fn dry_run(
         x_mode: XMode::Radius,
         ..machine.clone()
     };
-    let guard = DeltaGuard::new(job, &radius).map_err(DryRunError::Guard)?;
+    let guard = DeltaGuard::new(job, &radius).map_err(LinuxcncSimError::Guard)?;
     let points = guard.points();
     let started = Instant::now();
     let instance = Simulation::start(machine, speed).await?;
@@ -547,7 +559,7 @@ async fn run_on(
     posted: &Posted,
     options: LinuxcncDryRunOptions,
     log: &mut ExecLog,
-) -> Result<(LinuxcncOutcome, SampledRun), DryRunError> {
+) -> Result<(LinuxcncOutcome, SampledRun), LinuxcncSimError> {
     let mut sampler = instance.sampler()?;
     let stdout = sampler.stdout.take().expect("piped");
     let mut path = SampledPath::new(guard, rapid_lines(posted), SERVO_PERIOD_S, log);

@@ -402,9 +402,9 @@ fn dry_run(
     let bar = terminal::progress_bar();
     options.progress = bar.as_ref().map(terminal::Bar::callback);
     let r = match controller {
-        Controller::WhirlSim => {
-            runtime()?.block_on(dry_run::dry_run(&job, &machine, &posted, options, &mut log))
-        }
+        Controller::WhirlSim => runtime()?
+            .block_on(dry_run::dry_run(&job, &machine, &posted, options, &mut log))
+            .map_err(anyhow::Error::from),
         Controller::Linuxcnc => {
             let options = LinuxcncDryRunOptions {
                 speed_up: options
@@ -414,9 +414,11 @@ fn dry_run(
                 progress: options.progress,
                 commands: options.commands,
             };
-            runtime()?.block_on(whirl::judge::linuxcnc::dry_run(
-                &job, &machine, &posted, options, &mut log,
-            ))
+            runtime()?
+                .block_on(whirl::judge::linuxcnc::dry_run(
+                    &job, &machine, &posted, options, &mut log,
+                ))
+                .map_err(anyhow::Error::from)
         }
     };
     if let Some(bar) = bar {
