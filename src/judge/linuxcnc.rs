@@ -493,8 +493,7 @@ pub async fn dry_run(
         return Err(LinuxcncSimError::SpeedUp(format!(
             "--time-scale {speed}: LinuxCNC's clock runs at 1 (real time) to {MAX_SPEED_UP}x \
              (faster, its samples were found to differ from a real-time run's)"
-        ))
-        .into());
+        )));
     }
     // The sampler records LinuxCNC's axis positions, whose X is a radius in every X mode.
     let radius = MachineProfile {
