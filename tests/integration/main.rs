@@ -10,7 +10,6 @@ mod faults_serial;
 mod layers;
 mod link;
 mod linkage;
-mod linuxcnc;
 mod logs;
 mod machines;
 mod modbus_map;

@@ -2,10 +2,16 @@
 //! headless simulation: the dry run of every example measured within Δ, the corner effect
 //! of LinuxCNC's parabolic blends and the bound that holds it, the `linuxcncrsh` transport
 //! (hold, resume, abort, an error in LinuxCNC's words, a stop). LinuxCNC allows one
-//! instance per host, so these tests take turns.
+//! instance per host, so these tests take turns; and they are a test binary of their own,
+//! which cargo runs after the integration tests rather than beside them, so that LinuxCNC's
+//! servo thread and the timing-sensitive streaming tests do not share two cores.
 //! With LinuxCNC missing they fail: CI installs it.
 
-use crate::util;
+/// The integration tests' helpers (this binary uses some of them).
+#[allow(dead_code)]
+#[path = "integration/util.rs"]
+mod util;
+
 use std::ffi::OsStr;
 use std::path::Path;
 use std::sync::{Arc, Mutex, MutexGuard};
