@@ -36,38 +36,15 @@ fn profile() -> MachineProfile {
     MachineProfile::builtin_linuxcnc().unwrap()
 }
 
-/// `whirl dry-run JOB --controller linuxcnc [extra…] --report --log`: exit code, report,
-/// log.
+/// `whirl dry-run JOB --controller linuxcnc [extra…]` (see [`util::dry_run`]).
 fn dry_run(
     job: &Path,
     dir: &Path,
     extra: &[&OsStr],
 ) -> (Option<i32>, serde_json::Value, log::Read) {
-    let (report, log) = (dir.join("report.json"), dir.join("exec.jsonl"));
-    let mut args = vec![
-        OsStr::new("dry-run"),
-        job.as_os_str(),
-        OsStr::new("--controller"),
-        OsStr::new("linuxcnc"),
-        OsStr::new("--report"),
-        report.as_os_str(),
-        OsStr::new("--log"),
-        log.as_os_str(),
-    ];
+    let mut args = vec![OsStr::new("--controller"), OsStr::new("linuxcnc")];
     args.extend_from_slice(extra);
-    let o = util::whirl(&args);
-    let text = std::fs::read_to_string(&report).unwrap_or_else(|_| {
-        panic!(
-            "no report: {}{}",
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
-        )
-    });
-    (
-        o.status.code(),
-        serde_json::from_str(&text).unwrap(),
-        log::read(&log).expect("the log reads back"),
-    )
+    util::dry_run(job, dir, &args)
 }
 
 #[test]
@@ -263,12 +240,18 @@ fn run(
     (outcome, log::read(&path).unwrap())
 }
 
-fn ends(read: &log::Read) -> Vec<&Event> {
-    read.records
+/// How the log's one run ended (`completed`), if the log holds one Start and one End.
+fn ended(read: &log::Read) -> Option<bool> {
+    let marks: Vec<&Event> = read
+        .records
         .iter()
         .map(|r| &r.event)
         .filter(|e| matches!(e, Event::Start { .. } | Event::End { .. }))
-        .collect()
+        .collect();
+    match marks[..] {
+        [Event::Start { .. }, Event::End { completed, .. }] => Some(*completed),
+        _ => None,
+    }
 }
 
 #[test]
@@ -288,16 +271,7 @@ fn streams_to_linuxcnc_hold_resume_abort_errors_and_stops() {
         stop.contains("E-stop") && stop.contains("power_on"),
         "{stop}"
     );
-    assert!(matches!(
-        ends(&read)[..],
-        [
-            Event::Start { .. },
-            Event::End {
-                completed: false,
-                ..
-            }
-        ]
-    ));
+    assert_eq!(ended(&read), Some(false));
 
     // Hold, check the machine stands, resume, run to the end.
     let held_at: Arc<Mutex<Vec<[f64; 3]>>> = Arc::default();
@@ -329,16 +303,7 @@ fn streams_to_linuxcnc_hold_resume_abort_errors_and_stops() {
         held.windows(2).all(|w| w[0] == w[1]),
         "held still: {held:?}"
     );
-    assert!(matches!(
-        ends(&read)[..],
-        [
-            Event::Start { .. },
-            Event::End {
-                completed: true,
-                ..
-            }
-        ]
-    ));
+    assert_eq!(ended(&read), Some(true));
     let statuses = read
         .records
         .iter()
@@ -354,16 +319,7 @@ fn streams_to_linuxcnc_hold_resume_abort_errors_and_stops() {
     });
     let stop = outcome.unwrap().stop().unwrap();
     assert!(stop.contains("aborted by the operator"), "{stop}");
-    assert!(matches!(
-        ends(&read)[..],
-        [
-            Event::Start { .. },
-            Event::End {
-                completed: false,
-                ..
-            }
-        ]
-    ));
+    assert_eq!(ended(&read), Some(false));
 
     // A line LinuxCNC refuses: the run ends in its words.
     let mut bad = posted.clone();
@@ -389,15 +345,6 @@ fn streams_to_linuxcnc_hold_resume_abort_errors_and_stops() {
     });
     let stop = outcome.unwrap().stop().unwrap();
     assert!(stop.contains("LinuxCNC holds the machine"), "{stop}");
-    assert!(matches!(
-        ends(&read)[..],
-        [
-            Event::Start { .. },
-            Event::End {
-                completed: false,
-                ..
-            }
-        ]
-    ));
+    assert_eq!(ended(&read), Some(false));
     runtime.block_on(sim.shut_down());
 }

@@ -489,7 +489,7 @@ pub async fn dry_run(
     log: &mut ExecLog,
 ) -> Result<DryRunReport, LinuxcncSimError> {
     let speed = options.speed_up;
-    if !(speed == 1.0 || (1.0..=MAX_SPEED_UP).contains(&speed)) {
+    if !(1.0..=MAX_SPEED_UP).contains(&speed) {
         return Err(LinuxcncSimError::SpeedUp(format!(
             "--time-scale {speed}: LinuxCNC's clock runs at 1 (real time) to {MAX_SPEED_UP}x \
              (faster, its samples were found to differ from a real-time run's)"

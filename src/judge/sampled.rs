@@ -36,8 +36,8 @@ pub struct SampledRun {
 pub struct SampledPath {
     guard: DeltaGuard,
     merger: Merger,
-    /// The kind of the open stretch and its line.
-    open: Option<(bool, u64)>,
+    /// Whether the stretch being merged is a rapid.
+    open_rapid: Option<bool>,
     /// Whether each program line (1-based index) is a rapid.
     rapid_lines: Vec<bool>,
     period_s: f64,
@@ -62,7 +62,7 @@ impl SampledPath {
         SampledPath {
             guard,
             merger: Merger::new([COUNTS_PER_UNIT; 3]),
-            open: None,
+            open_rapid: None,
             rapid_lines,
             period_s,
             last: None,
@@ -110,13 +110,10 @@ impl SampledPath {
             .get(line as usize)
             .copied()
             .unwrap_or(false);
-        if self.open.is_some_and(|(kind, _)| kind != rapid) {
+        if let Some(open) = self.open_rapid.replace(rapid).filter(|&open| open != rapid) {
             if let Some(stretch) = self.merger.finish() {
-                self.judge(stretch);
+                self.judge(stretch, open);
             }
-        }
-        if self.open.is_none_or(|(kind, _)| kind != rapid) {
-            self.open = Some((rapid, line));
         }
         let block = ExecutedBlock {
             line,
@@ -131,17 +128,13 @@ impl SampledPath {
             phases: Vec::new(),
         };
         if let Some(stretch) = self.merger.push(&block) {
-            self.judge(stretch);
+            self.judge(stretch, rapid);
         }
     }
 
-    /// A finished stretch: logged, and judged unless it is a rapid or stands still.
-    fn judge(&mut self, stretch: Stretch) {
-        let rapid = self
-            .rapid_lines
-            .get(stretch.line as usize)
-            .copied()
-            .unwrap_or(false);
+    /// A finished stretch (a `rapid` one or not): logged, and judged unless it is a rapid
+    /// or stands still.
+    fn judge(&mut self, stretch: Stretch, rapid: bool) {
         if stretch.from == stretch.to {
             return;
         }
@@ -167,8 +160,8 @@ impl SampledPath {
     /// end, the points still open (a program stopped part way leaves them uncut, which is
     /// no error of its path).
     pub fn finish(mut self, ran: bool) -> Result<SampledRun, LogError> {
-        if let Some(stretch) = self.merger.finish() {
-            self.judge(stretch);
+        if let (Some(stretch), Some(rapid)) = (self.merger.finish(), self.open_rapid) {
+            self.judge(stretch, rapid);
         }
         if ran && self.run.breach.is_none() {
             if let Err(Breach { message }) = self.guard.program_end() {

@@ -2,35 +2,8 @@
 //! simulated controller, whose Δ guard measures what it executed.
 
 use crate::util;
-use serde_json::Value;
 use std::ffi::OsStr;
-use std::path::Path;
 use whirl::log::{self, Event};
-
-/// Runs `whirl dry-run JOB --report --log [extra…]`; returns the exit code, the report and
-/// the log as read back.
-fn dry_run(job: &Path, dir: &Path, extra: &[&OsStr]) -> (Option<i32>, Value, log::Read) {
-    let (report, log) = (dir.join("report.json"), dir.join("exec.jsonl"));
-    let mut args = vec![
-        OsStr::new("dry-run"),
-        job.as_os_str(),
-        OsStr::new("--report"),
-        report.as_os_str(),
-        OsStr::new("--log"),
-        log.as_os_str(),
-    ];
-    args.extend_from_slice(extra);
-    let o = util::whirl(&args);
-    let text = std::fs::read_to_string(&report).unwrap_or_else(|_| {
-        panic!(
-            "no report: {}{}",
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
-        )
-    });
-    let read = log::read(&log).expect("the log reads back");
-    (o.status.code(), serde_json::from_str(&text).unwrap(), read)
-}
 
 /// An executed move of a log.
 struct Move {
@@ -67,7 +40,7 @@ fn every_example_dry_runs_to_the_end_within_delta() {
         ]);
         assert!(o.status.success());
         let program = std::fs::read_to_string(&planned).unwrap();
-        let (code, r, log) = dry_run(&job, dir.path(), &[]);
+        let (code, r, log) = util::dry_run(&job, dir.path(), &[]);
         let name = job.display();
         assert_eq!(code, Some(0), "{name}: {r:#}");
         assert_eq!(r["within_delta"], true, "{name}");
@@ -107,7 +80,7 @@ fn a_coarse_stretch_trips_the_delta_alarm_inside_the_stretch() {
     let dir = tempfile::tempdir().unwrap();
     let job = util::example("double-start");
     let program = util::coarse_program(&job, dir.path());
-    let (code, r, log) = dry_run(
+    let (code, r, log) = util::dry_run(
         &job,
         dir.path(),
         &[OsStr::new("--program"), program.as_os_str()],
@@ -133,7 +106,7 @@ fn a_coarse_stretch_trips_the_delta_alarm_inside_the_stretch() {
 fn the_log_of_a_dry_run_draws_the_machined_section_against_the_target() {
     let dir = tempfile::tempdir().unwrap();
     let job = util::example("double-start");
-    let (code, _, _) = dry_run(&job, dir.path(), &[]);
+    let (code, _, _) = util::dry_run(&job, dir.path(), &[]);
     assert_eq!(code, Some(0));
     let svg = dir.path().join("run.svg");
     let o = util::whirl(&[
@@ -194,7 +167,7 @@ fn every_example_dry_runs_within_delta_over_modbus_tcp_and_rtu() {
             scope.spawn(move || {
                 for job in util::examples() {
                     let dir = tempfile::tempdir().unwrap();
-                    let (code, r, log) = dry_run(
+                    let (code, r, log) = util::dry_run(
                         &job,
                         dir.path(),
                         &[
@@ -248,7 +221,7 @@ fn every_example_dry_runs_within_delta_on_can_drives_over_slcan() {
             scope.spawn(move || {
                 for job in half {
                     let dir = tempfile::tempdir().unwrap();
-                    let (code, r, log) = dry_run(
+                    let (code, r, log) = util::dry_run(
                         job,
                         dir.path(),
                         &[

@@ -191,3 +191,33 @@ pub fn modbus_tcp_sim(log: &Path) -> (Sim, std::net::SocketAddr) {
         .unwrap();
     (Sim(child), address)
 }
+
+/// Runs `whirl dry-run JOB --report --log [extra…]`; returns the exit code, the report and
+/// the log as read back.
+pub fn dry_run(
+    job: &Path,
+    dir: &Path,
+    extra: &[&std::ffi::OsStr],
+) -> (Option<i32>, serde_json::Value, whirl::log::Read) {
+    use std::ffi::OsStr;
+    let (report, log) = (dir.join("report.json"), dir.join("exec.jsonl"));
+    let mut args = vec![
+        OsStr::new("dry-run"),
+        job.as_os_str(),
+        OsStr::new("--report"),
+        report.as_os_str(),
+        OsStr::new("--log"),
+        log.as_os_str(),
+    ];
+    args.extend_from_slice(extra);
+    let o = whirl(&args);
+    let text = std::fs::read_to_string(&report).unwrap_or_else(|_| {
+        panic!(
+            "no report: {}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        )
+    });
+    let read = whirl::log::read(&log).expect("the log reads back");
+    (o.status.code(), serde_json::from_str(&text).unwrap(), read)
+}

@@ -19,9 +19,9 @@ fn exchange(session: &mut Session, now: Duration, request: &str, reply: &str) {
     session.receive(reply.as_bytes());
 }
 
-/// Logs in (the server echoes until `set echo off` has been read) and finds the machine
-/// out of E-stop and on.
-fn logged_in(config: SessionConfig) -> Session {
+/// Logs in (the server echoes until `set echo off` has been read), the enable password
+/// answered `enable_reply`.
+fn logged_in_as(config: SessionConfig, enable_reply: &str) -> Session {
     let mut s = Session::new(config);
     exchange(
         &mut s,
@@ -41,16 +41,27 @@ fn logged_in(config: SessionConfig) -> Session {
         "set echo off",
         "set echo off\r\nSET ECHO ACK\n\r",
     );
-    exchange(&mut s, T0, "set enable EMCTOO", "SET ENABLE ACK\n\r");
+    exchange(&mut s, T0, "set enable EMCTOO", enable_reply);
     s
 }
 
-fn running() -> Session {
+fn logged_in(config: SessionConfig) -> Session {
+    logged_in_as(config, "SET ENABLE ACK\n\r")
+}
+
+/// Logged in, the machine found out of E-stop and on, auto mode, the program opened: its
+/// `get error` is next.
+fn opened() -> Session {
     let mut s = logged_in(config());
     exchange(&mut s, T0, "get estop", "ESTOP OFF\r\n");
     exchange(&mut s, T0, "get machine", "MACHINE ON\r\n");
     exchange(&mut s, T0, "set mode auto", "SET MODE ACK\n\r");
     exchange(&mut s, T0, "set open /tmp/job.ngc", "SET OPEN ACK\n\r");
+    s
+}
+
+fn running() -> Session {
+    let mut s = opened();
     exchange(&mut s, T0, "get error", "ERROR OK\r\n");
     exchange(&mut s, T0, "set run", "SET RUN ACK\n\r");
     assert_eq!(s.next_event(), Some(Event::Running));
@@ -185,11 +196,7 @@ fn e_stop_and_machine_off_are_refused_unless_the_profile_allows_power_on() {
 
 #[test]
 fn a_program_linuxcnc_cannot_open_is_refused_in_its_words() {
-    let mut s = logged_in(config());
-    exchange(&mut s, T0, "get estop", "ESTOP OFF\r\n");
-    exchange(&mut s, T0, "get machine", "MACHINE ON\r\n");
-    exchange(&mut s, T0, "set mode auto", "SET MODE ACK\n\r");
-    exchange(&mut s, T0, "set open /tmp/job.ngc", "SET OPEN ACK\n\r");
+    let mut s = opened();
     exchange(
         &mut s,
         T0,
@@ -232,26 +239,7 @@ fn wrong_passwords_are_refused_naming_the_key() {
         Some(Ending::Refused(why)) => assert!(why.contains("connect_password"), "{why}"),
         other => panic!("{other:?}"),
     }
-    let mut s = Session::new(config());
-    exchange(
-        &mut s,
-        T0,
-        "hello EMC whirl 1.0",
-        "HELLO ACK EMCNETSVR 1.1\r\n",
-    );
-    exchange(
-        &mut s,
-        T0,
-        "set verbose on",
-        "set verbose on\r\nSET VERBOSE ACK\n\r",
-    );
-    exchange(
-        &mut s,
-        T0,
-        "set echo off",
-        "set echo off\r\nSET ECHO ACK\n\r",
-    );
-    exchange(&mut s, T0, "set enable EMCTOO", "SET ENABLE NAK\n\r");
+    let s = logged_in_as(config(), "SET ENABLE NAK\n\r");
     match s.ending() {
         Some(Ending::Refused(why)) => assert!(why.contains("enable_password"), "{why}"),
         other => panic!("{other:?}"),
