@@ -22,8 +22,14 @@ use crate::interpreter::{
 use crate::motion::{Dynamics, Hold, Motion, Tag};
 use crate::protocol::{classify, ByteClass, LineAssembler, Realtime, RxBuffer};
 use crate::record::{ExecutedBlock, Position};
-use crate::report::{self, GcSnapshot, MachineState, Settings, StatusSnapshot};
+use crate::report::{self, Flags, GcSnapshot, MachineState, StatusSnapshot, Tracker, Units};
+use crate::settings::{self, report_bits, Initial, Settings};
 use crate::system::SystemCommand;
+
+/// The longest build string `$I=` stores (grblHAL's `stored_line_t` holds
+/// `MAX_STORED_LINE_LENGTH` = 70 bytes with its terminator; `system.c` refuses a string of
+/// 69 or more, `error:3`).
+const MAX_BUILD_INFO: usize = 68;
 
 /// Feed and spindle overrides stay within 10–200 % (grbl's `config.h` defaults).
 const OVERRIDE_MIN: u8 = 10;
@@ -40,8 +46,9 @@ pub struct ControllerOptions {
     pub planner_blocks: usize,
     /// Junction deviation `$11`, mm (grbl's default 0.010).
     pub junction_deviation: f64,
-    /// Wait for the queue to empty before a G92 or G54–G59 change takes effect, as grbl
-    /// does by default (`FORCE_BUFFER_SYNC_DURING_WCO_CHANGE`; `$I` shows `W` when off).
+    /// Wait for the queue to empty before a G92 or G54–G59 change takes effect, as
+    /// grblHAL does by default (`$10` bit 8, "Buffer sync on WCO change", in its default
+    /// `$10=511`; `$I` shows `W` when off).
     pub sync_on_offset_change: bool,
     /// Where the machine is at power-up (machine coordinates).
     pub start: Position,
@@ -127,8 +134,13 @@ struct Exec {
 pub struct Controller {
     options: ControllerOptions,
     dialect: Dialect,
+    /// The soft limits of X, Z, C (the profile's, then as `$130`–`$133` set them).
     travel: [(Option<f64>, Option<f64>); 3],
+    /// The profile's travel, which `$130`–`$133` are measured from.
+    profile_travel: [(Option<f64>, Option<f64>); 3],
     settings: Settings,
+    /// The build info string `$I` shows (`$I=` sets it).
+    build_info: String,
     now: f64,
     rx: RxBuffer,
     assembler: LineAssembler,
@@ -147,13 +159,15 @@ pub struct Controller {
     exec: Option<Exec>,
     /// The spindle as executed (the parser's runs ahead).
     spindle: Spindle,
+    /// Flood coolant as executed.
+    coolant: bool,
+    /// A jog (`$J=`) is queued or running: the state is `Jog`.
+    jogging: bool,
     feed_override: u8,
     rapid_override: u8,
     spindle_override: u8,
-    wco_counter: u8,
-    wco_changed: bool,
-    ov_counter: u8,
-    ov_changed: bool,
+    /// What the next status report shows of its optional fields.
+    tracker: Tracker,
     last_state: MachineState,
     /// The Δ guard, if one watches the motion.
     guard: Option<Box<dyn Guard>>,
@@ -176,20 +190,16 @@ impl Controller {
                 return Err(ConfigError::Profile { key, value });
             }
         }
-        let dynamics = Dynamics {
-            max_rate: [axes.x.max_rate, axes.z.max_rate, axes.c.max_rate].map(|r| r / 60.0),
-            accel: [axes.x.accel, axes.z.accel, axes.c.accel],
-            junction_deviation: options.junction_deviation,
-        };
         let span = |min: Option<f64>, max: Option<f64>| match (min, max) {
             (Some(a), Some(b)) => (b - a).max(0.0),
             _ => 0.0,
         };
-        let c_travel = span(axes.c.min, axes.c.max);
-        let settings = Settings {
+        // Y, which never moves, shows X's rate and acceleration and no travel.
+        let settings = Settings::new(&Initial {
             junction_deviation: options.junction_deviation,
-            spindle_max: machine.spindle_rpm.map_or(1000.0, |s| s.1),
-            spindle_min: machine.spindle_rpm.map_or(0.0, |s| s.0),
+            spindle: machine
+                .spindle_rpm
+                .map_or((1000.0, 0.0), |(min, max)| (max, min)),
             max_rate: [
                 axes.x.max_rate,
                 axes.x.max_rate,
@@ -201,30 +211,31 @@ impl Controller {
                 span(axes.x.min, axes.x.max),
                 0.0,
                 span(axes.z.min, axes.z.max),
-                c_travel,
+                span(axes.c.min, axes.c.max),
             ],
             planner_blocks: options.planner_blocks,
-        };
+            sync_on_offset_change: options.sync_on_offset_change,
+        });
         let numbers = Numbers(machine.number);
         let start = options.start.to_array().map(|v| numbers.hold(v));
+        let travel = [
+            (axes.x.min, axes.x.max),
+            (axes.z.min, axes.z.max),
+            (axes.c.min, axes.c.max),
+        ];
         let mut controller = Controller {
-            dialect: Dialect {
-                numbers,
-                sync_on_offset_change: options.sync_on_offset_change,
-            },
-            travel: [
-                (axes.x.min, axes.x.max),
-                (axes.z.min, axes.z.max),
-                (axes.c.min, axes.c.max),
-            ],
-            settings,
+            dialect: dialect(numbers, &settings),
+            travel,
+            profile_travel: travel,
             now: 0.0,
             rx: RxBuffer::new(options.rx_buffer_size),
             assembler: LineAssembler::new(machine.max_line_length),
             output: report::banner(),
             events: Vec::new(),
             parser: ParserState::new(start, [0.0; 3]),
-            motion: Motion::new(dynamics, options.planner_blocks, start),
+            motion: Motion::new(dynamics(&settings), options.planner_blocks, start),
+            settings,
+            build_info: String::new(),
             alarm: None,
             critical: false,
             check_mode: None,
@@ -236,13 +247,12 @@ impl Controller {
                 ccw: false,
                 rpm: 0.0,
             },
+            coolant: false,
+            jogging: false,
             feed_override: 100,
             rapid_override: 100,
             spindle_override: 100,
-            wco_counter: 0,
-            wco_changed: true,
-            ov_counter: 1,
-            ov_changed: false,
+            tracker: Tracker::after_reset(),
             last_state: MachineState::Idle,
             guard: None,
             options,
@@ -362,6 +372,9 @@ impl Controller {
             MachineState::Alarm
         } else if self.check_mode.is_some() {
             MachineState::Check
+        } else if self.jogging && self.motion.is_running() {
+            // A hold during a jog is its cancel: grblHAL's state stays `Jog` while it slows.
+            MachineState::Jog
         } else {
             match self.motion.hold() {
                 Hold::Decelerating => MachineState::Hold { complete: false },
@@ -396,11 +409,19 @@ impl Controller {
                 let report = self.status_report();
                 self.output.push_str(&report);
             }
+            Realtime::CompleteStatusReport => {
+                self.tracker.add(Flags::everything());
+                let report = self.status_report();
+                self.output.push_str(&report);
+            }
+            Realtime::JogCancel => self.jog_cancel(),
             Realtime::ParserStateReport => {
                 let gc = self.gc_report();
                 self.output.push_str(&gc);
             }
             Realtime::FeedHold => {
+                // Not during a jog: grblHAL's `state_set` refuses a hold from `Jog`
+                // (`state_machine.c`); 0x85 is the way to stop one.
                 if matches!(self.state(), MachineState::Idle | MachineState::Run) {
                     self.motion.feed_hold();
                 }
@@ -417,7 +438,12 @@ impl Controller {
             Realtime::RapidOverride(percent) => self.set_overrides(self.feed_override, percent),
             Realtime::SpindleOverride(step) => {
                 let next = step.apply(self.spindle_override, OVERRIDE_MIN, OVERRIDE_MAX);
-                self.ov_changed |= next != self.spindle_override;
+                if next != self.spindle_override {
+                    self.tracker.add(Flags {
+                        overrides: true,
+                        ..Flags::default()
+                    });
+                }
                 self.spindle_override = next;
             }
         }
@@ -428,7 +454,10 @@ impl Controller {
         if (feed, rapid) != (self.feed_override, self.rapid_override) {
             self.feed_override = feed;
             self.rapid_override = rapid;
-            self.ov_changed = true;
+            self.tracker.add(Flags {
+                overrides: true,
+                ..Flags::default()
+            });
             self.motion
                 .set_overrides(f64::from(feed) / 100.0, f64::from(rapid) / 100.0);
         }
@@ -442,20 +471,25 @@ impl Controller {
             self.raise(Alarm::AbortCycle);
         }
         self.exec = None;
+        self.jogging = false;
         self.rx.clear();
         self.assembler.clear();
         self.last_error = None;
-        // grblHAL keeps G92 across a reset (stored in NVS, `$384=0`); changes made in
+        // grblHAL keeps G92 across a reset (stored in NVS) unless `$384=1`; changes made in
         // check mode are dropped with it.
         let g92 = self.check_mode.take().unwrap_or(self.parser.g92);
+        let g92 = if self.settings.g92_volatile() {
+            [0.0; 3]
+        } else {
+            g92
+        };
         self.parser = ParserState::new(self.motion.position(), g92);
         self.critical = false;
         self.spindle.on = false;
+        self.coolant = false;
         self.spindle_override = 100;
         self.set_overrides(100, 100);
-        self.wco_changed = true;
-        self.ov_counter = 1;
-        self.ov_changed = false;
+        self.tracker = Tracker::after_reset();
         self.output.push_str(&report::banner());
         if self.alarm.is_some() {
             self.output
@@ -486,50 +520,46 @@ impl Controller {
         });
     }
 
+    fn units(&self) -> Units {
+        Units {
+            diameter: self.parser.diameter,
+            inches: self.settings.report_inches(),
+            c_rotary: self.settings.c_rotary(),
+        }
+    }
+
     fn status_report(&mut self) -> String {
         let state = self.state();
-        let busy = matches!(state, MachineState::Run | MachineState::Hold { .. });
-        let wco = if self.wco_counter > 0 && !self.wco_changed {
-            self.wco_counter -= 1;
-            None
-        } else {
-            self.wco_counter = if busy { 29 } else { 9 };
-            self.wco_changed = false;
-            Some(self.parser.g92)
+        // The executing block's N, else the parser's last (grblHAL's `Ln:` falls back on
+        // `gc_state.line_number`, `report.c`).
+        let line = match self.motion.head_tag() {
+            Some(tag) => tag.n.unwrap_or(0),
+            None => self.parser.line_number,
         };
-        let overrides = if self.ov_counter > 0 && !self.ov_changed {
-            self.ov_counter -= 1;
-            None
-        } else {
-            self.ov_counter = if busy { 19 } else { 9 };
-            self.ov_changed = false;
-            Some([
+        let spindle_rpm = self.spindle.rpm * f64::from(self.spindle_override) / 100.0;
+        let snapshot = StatusSnapshot {
+            state,
+            alarm: self.alarm,
+            position: self.motion.position(),
+            offset: self.parser.g92,
+            coord_system: self.parser.coord_system,
+            units: self.units(),
+            mask: self.settings.report_mask(),
+            lathe: self.settings.lathe_mode(),
+            homing_axes: self.settings.homing_axes(),
+            blocks_free: self.blocks_free(),
+            rx_free: self.rx.free(),
+            line: Some(line).filter(|&n| n > 0),
+            feed: self.motion.speed() * 60.0,
+            spindle: (self.spindle.on, self.spindle.ccw, spindle_rpm),
+            coolant: self.coolant,
+            overrides: [
                 self.feed_override,
                 self.rapid_override,
                 self.spindle_override,
-            ])
+            ],
         };
-        let spindle_rpm = if self.spindle.on {
-            self.spindle.rpm * f64::from(self.spindle_override) / 100.0
-        } else {
-            0.0
-        };
-        report::status(&StatusSnapshot {
-            state,
-            position: self.motion.position(),
-            diameter: self.parser.diameter,
-            blocks_free: self.blocks_free(),
-            rx_free: self.rx.free(),
-            line: self.motion.head_tag().and_then(|t| t.n).filter(|&n| n > 0),
-            feed: self.motion.speed() * 60.0,
-            spindle: spindle_rpm,
-            wco,
-            overrides,
-            accessory: self
-                .spindle
-                .on
-                .then_some(if self.spindle.ccw { 'C' } else { 'S' }),
-        })
+        report::status(&snapshot, &mut self.tracker)
     }
 
     fn gc_report(&self) -> String {
@@ -541,11 +571,14 @@ impl Controller {
                 MotionMode::Cancelled => 80,
             },
             coord_system: p.coord_system,
+            g92: p.g92 != [0.0; 3],
+            lathe: self.settings.lathe_mode(),
+            diameter: p.diameter,
             plane: p.plane,
             inches: p.inches,
             incremental: p.incremental,
             inverse_time: p.inverse_time,
-            diameter: p.diameter,
+            retract_r: p.retract_r,
             spindle: match (p.spindle.on, p.spindle.ccw) {
                 (false, _) => 5,
                 (true, false) => 3,
@@ -554,6 +587,7 @@ impl Controller {
             coolant: p.coolant,
             feed: p.feed,
             rpm: p.spindle.rpm,
+            units: self.units(),
         })
     }
 
@@ -594,27 +628,45 @@ impl Controller {
         if text.is_empty() {
             return self.answer(tag, text, Ok(()));
         }
-        if text.starts_with('$') {
-            let (result, reset) = self.system(&text);
-            self.answer(tag, text, result);
+        if let Some(command) = text.strip_prefix('$').map(|_| SystemCommand::parse(&text)) {
+            if let SystemCommand::Jog(gcode) = &command {
+                tag.n = interpreter::line_number(gcode);
+            }
+            let (result, reset) = self.system(command, tag);
+            if let Some(result) = result {
+                self.answer(tag, text, result);
+            } else if let Some(exec) = self.exec.as_mut() {
+                // A jog waiting for planner room: answered once queued.
+                exec.text = text;
+            }
             if reset {
                 self.soft_reset();
             }
             return;
         }
         tag.n = interpreter::line_number(&text);
-        if self.alarm.is_some() {
+        // G-code is locked out in alarm and while jogging (grblHAL's `protocol.c`).
+        if self.alarm.is_some() || self.state() == MachineState::Jog {
             return self.answer(tag, text, Err(GrblError::SystemGcLock));
         }
         if let Some(error) = self.last_error {
             // grblHAL's sticky error: not even parsed.
             return self.answer(tag, text, Err(error));
         }
-        let g92 = self.parser.g92;
+        let before = self.parser.clone();
         match interpreter::interpret(&text, &mut self.parser, self.dialect) {
             Err(error) => self.answer(tag, text, Err(error)),
             Ok(block) => {
-                self.wco_changed |= self.parser.g92 != g92;
+                let p = &self.parser;
+                let coord_system = p.coord_system != before.coord_system;
+                // Report_LatheXMode also asks for WCO (`report_add_realtime`).
+                let diameter_mode = p.diameter != before.diameter;
+                self.tracker.add(Flags {
+                    wco: p.g92 != before.g92 || coord_system || diameter_mode,
+                    coord_system,
+                    diameter_mode,
+                    ..Flags::default()
+                });
                 tag.n = block.n;
                 self.exec = Some(Exec {
                     tag,
@@ -640,15 +692,25 @@ impl Controller {
         });
     }
 
-    /// Runs a `$` command; returns its result and whether a soft reset follows the answer.
-    fn system(&mut self, text: &str) -> (Result<(), GrblError>, bool) {
-        let command = SystemCommand::parse(text);
+    /// Runs a `$` command; returns its result (`None` while a jog waits for planner room:
+    /// it is answered when queued) and whether a soft reset follows the answer. States and
+    /// errors as grblHAL's `system.c` has them for each command.
+    fn system(
+        &mut self,
+        command: SystemCommand,
+        tag: Tag,
+    ) -> (Option<Result<(), GrblError>>, bool) {
         if self.critical && !command.allowed_during_critical() {
-            return (Err(GrblError::NotAllowedCriticalEvent), false);
+            return (Some(Err(GrblError::NotAllowedCriticalEvent)), false);
         }
         let state = self.state();
-        let idle_or_alarm = matches!(state, MachineState::Idle | MachineState::Alarm);
-        let needs_idle = |ok: bool| {
+        // Idle, or in alarm or check mode: where grblHAL reads and writes settings and
+        // prints `$I` and `$N`.
+        let settled = matches!(
+            state,
+            MachineState::Idle | MachineState::Alarm | MachineState::Check
+        );
+        let needs = |ok: bool| {
             if ok {
                 Ok(())
             } else {
@@ -660,42 +722,64 @@ impl Controller {
                 self.output.push_str(&report::help());
                 Ok(())
             }
-            SystemCommand::Settings => needs_idle(!matches!(
+            SystemCommand::HelpTopics => {
+                self.output.push_str(&help_topics());
+                Ok(())
+            }
+            SystemCommand::Settings => needs(!matches!(
                 state,
                 MachineState::Run | MachineState::Hold { .. }
             ))
             .map(|()| self.output.push_str(&report::settings(&self.settings))),
-            SystemCommand::Setting(id) => needs_idle(idle_or_alarm).and_then(|()| {
-                let value = self.settings.get(id).ok_or(GrblError::InvalidStatement)?;
+            SystemCommand::Setting(id) => needs(settled).and_then(|()| {
+                let value = self.settings.text(id).ok_or(GrblError::SettingDisabled)?;
                 self.output
                     .push_str(&format!("${id}={value}{}", report::EOL));
                 Ok(())
             }),
-            SystemCommand::SetSetting | SystemCommand::Unsupported => {
-                needs_idle(idle_or_alarm).and(Err(GrblError::InvalidStatement))
-            }
+            SystemCommand::SetSetting(id, value) => needs(settled)
+                .and_then(|()| self.settings.store(id, &value))
+                .map(|()| self.settings_changed(id)),
             SystemCommand::ParserState => {
                 let gc = self.gc_report();
                 self.output.push_str(&gc);
+                // `$G` asks for the homed state in the next report (`system.c`).
+                self.tracker.add(Flags {
+                    homed: true,
+                    ..Flags::default()
+                });
                 Ok(())
             }
-            SystemCommand::Parameters => needs_idle(idle_or_alarm).map(|()| {
-                let text = report::parameters(self.parser.g92, self.parser.diameter);
+            SystemCommand::Parameters => {
+                let text = report::parameters(self.parser.g92, self.units());
+                self.output.push_str(&text);
+                Ok(())
+            }
+            SystemCommand::BuildInfo => needs(settled).map(|()| {
+                let text = report::build_info(&report::BuildInfo {
+                    build: &self.build_info,
+                    blocks: self.options.planner_blocks,
+                    rx_size: self.options.rx_buffer_size,
+                    sync_on_offset_change: self.dialect.sync_on_offset_change,
+                    legacy_realtime: self.settings.legacy_realtime(),
+                    homing: self.settings.homing_enabled(),
+                    lathe: self.settings.lathe_mode(),
+                });
                 self.output.push_str(&text);
             }),
-            SystemCommand::BuildInfo => needs_idle(idle_or_alarm).map(|()| {
-                let text = report::build_info(
-                    self.options.planner_blocks,
-                    self.options.rx_buffer_size,
-                    self.options.sync_on_offset_change,
-                );
-                self.output.push_str(&text);
+            SystemCommand::SetBuildInfo(text) => needs(settled).and_then(|()| {
+                if text.len() > MAX_BUILD_INFO {
+                    return Err(GrblError::InvalidStatement);
+                }
+                self.build_info = text;
+                Ok(())
             }),
-            SystemCommand::StartupLines => needs_idle(idle_or_alarm).map(|()| {
+            SystemCommand::StartupLines => needs(settled).map(|()| {
                 self.output
                     .push_str(&format!("$N0={0}$N1={0}", report::EOL));
             }),
-            SystemCommand::Home => needs_idle(idle_or_alarm).and(Err(GrblError::HomingDisabled)),
+            SystemCommand::Home => needs(matches!(state, MachineState::Idle | MachineState::Alarm))
+                .and(Err(GrblError::HomingDisabled)),
             SystemCommand::Unlock => {
                 if self.alarm.take().is_some() {
                     self.output.push_str(&report::message("Caution: Unlocked"));
@@ -705,15 +789,165 @@ impl Controller {
             SystemCommand::CheckMode => {
                 if self.check_mode.is_some() && state == MachineState::Check {
                     self.output.push_str(&report::message("Disabled"));
-                    return (Ok(()), true);
+                    return (Some(Ok(())), true);
                 }
-                needs_idle(state == MachineState::Idle).map(|()| {
+                needs(state == MachineState::Idle).map(|()| {
                     self.check_mode = Some(self.parser.g92);
                     self.output.push_str(&report::message("Enabled"));
                 })
             }
+            SystemCommand::Jog(gcode) => {
+                return match self.jog(&gcode, tag) {
+                    Ok(true) => (Some(Ok(())), false),
+                    Ok(false) => (None, false),
+                    Err(error) => (Some(Err(error)), false),
+                };
+            }
+            SystemCommand::AlarmCodes => {
+                self.output.push_str(&report::alarm_codes());
+                Ok(())
+            }
+            SystemCommand::ErrorCodes => {
+                self.output.push_str(&report::error_codes());
+                Ok(())
+            }
+            SystemCommand::SettingGroups => {
+                self.output.push_str(&settings::groups());
+                Ok(())
+            }
+            SystemCommand::SettingDetails => {
+                self.output.push_str(&settings::details());
+                Ok(())
+            }
+            SystemCommand::SettingDescription(id) => {
+                // grblHAL (`output_setting_description`) prints the description of a setting
+                // it has and nothing for another; the simulator has no descriptions to give
+                // and prints what grblHAL prints for a setting without one.
+                let mut at = 0;
+                match interpreter::read_float(id.as_bytes(), &mut at) {
+                    None => Err(GrblError::BadNumberFormat),
+                    Some(id) if id.fract() != 0.0 => Err(GrblError::InvalidStatement),
+                    Some(id) => {
+                        let id = id.clamp(0.0, f64::from(u16::MAX)) as u16;
+                        if self.settings.text(id).is_some() {
+                            self.output
+                                .push_str(&format!("[SETTINGDESCR:{id}|]{}", report::EOL));
+                        }
+                        Ok(())
+                    }
+                }
+            }
+            SystemCommand::Unsupported => Err(GrblError::InvalidStatement),
         };
-        (result, false)
+        (Some(result), false)
+    }
+
+    /// A jog, `$J=` with `gcode` (grblHAL's `jog` in `system.c`, then `gc_execute_block`
+    /// and `mc_jog_execute` in `motion_control.c`): only idle or jogging (`error:8`); a
+    /// target beyond the soft limits is refused, `error:15` and no alarm, or with `$40=1`
+    /// cut to them. `Ok(true)`: queued; `Ok(false)`: waiting for planner room (the line is
+    /// then executed like a G1 and answered once queued).
+    fn jog(&mut self, gcode: &str, tag: Tag) -> Result<bool, GrblError> {
+        if !matches!(self.state(), MachineState::Idle | MachineState::Jog) {
+            return Err(GrblError::IdleError);
+        }
+        let mut jog = interpreter::jog(gcode, &self.parser, self.dialect)?;
+        if self.settings.soft_limits() {
+            let limits = self.limits();
+            let target = &mut jog.request.target;
+            if self.settings.jog_soft_limited() {
+                for (t, (min, max)) in target.iter_mut().zip(limits) {
+                    *t = t.clamp(min, max);
+                }
+            } else if self.outside_travel(*target) {
+                return Err(GrblError::TravelExceeded);
+            }
+        }
+        self.parser.position = jog.request.target;
+        let tag = Tag { n: jog.n, ..tag };
+        self.exec = Some(Exec {
+            tag,
+            text: String::new(),
+            steps: VecDeque::from([Step::Motion(jog.request)]),
+            dwell: None,
+            soft_limit: false,
+        });
+        self.jogging = self.jogging || self.state() == MachineState::Idle;
+        if self.run_exec_quietly() {
+            return Ok(true);
+        }
+        Ok(false)
+    }
+
+    /// Runs the line just made the executing one without answering it; `true` if it is
+    /// done (its steps all taken), `false` if it waits.
+    fn run_exec_quietly(&mut self) -> bool {
+        let Some(mut exec) = self.exec.take() else {
+            return true;
+        };
+        while let Some(Step::Motion(request)) = exec.steps.front().copied() {
+            if self.motion.blocks_free() == 0 {
+                self.exec = Some(exec);
+                return false;
+            }
+            self.motion.push(request, exec.tag);
+            exec.steps.pop_front();
+        }
+        true
+    }
+
+    /// Jog cancel (0x85, grblHAL's `CMD_JOG_CANCEL`): the RX buffer and the line being
+    /// read are dropped unanswered and the sticky error cleared, whatever the state; a jog
+    /// slows to a stop and its queue is dropped, and the parser takes the position the
+    /// machine stopped at. A jog line already waiting for planner room is not in the
+    /// buffer: as in grblHAL's `mc_line`, it is queued once the cancel has emptied the
+    /// planner, and starts a new jog.
+    fn jog_cancel(&mut self) {
+        self.rx.clear();
+        self.assembler.clear();
+        self.last_error = None;
+        if self.state() == MachineState::Jog {
+            self.motion.cancel(self.now);
+            self.collect_executed();
+            self.pump();
+        }
+    }
+
+    /// The soft limits as numbers (±∞ where an axis has none).
+    fn limits(&self) -> [(f64, f64); 3] {
+        let num = self.dialect.numbers;
+        self.travel.map(|(min, max)| {
+            (
+                min.map_or(f64::NEG_INFINITY, |m| num.hold(m)),
+                max.map_or(f64::INFINITY, |m| num.hold(m)),
+            )
+        })
+    }
+
+    /// A setting was written: what it changes beyond its value.
+    fn settings_changed(&mut self, id: u16) {
+        match id {
+            10 | 32 | 376 => {
+                self.dialect = dialect(self.dialect.numbers, &self.settings);
+                if !self.settings.lathe_mode() {
+                    // `set_mode`: leaving lathe mode ends diameter mode.
+                    self.parser.diameter = false;
+                }
+            }
+            11 | 110..=123 => self.motion.set_dynamics(dynamics(&self.settings)),
+            // `set_report_inches` refreshes the WCO (`system_flag_wco_change`).
+            13 => self.tracker.add(Flags {
+                wco: true,
+                ..Flags::default()
+            }),
+            130..=133 => {
+                let lengths = self.settings.travel();
+                for (i, length) in lengths.into_iter().enumerate() {
+                    self.travel[i] = travel(self.profile_travel[i], length);
+                }
+            }
+            _ => {}
+        }
     }
 
     /// Whether all queued motion is done and the machine stands still (grbl's
@@ -722,12 +956,14 @@ impl Controller {
         self.motion.is_empty() && !self.motion.is_running()
     }
 
+    /// Whether soft limits are on (`$20`) and `target` is beyond them.
     fn outside_travel(&self, target: [f64; 3]) -> bool {
-        let num = self.dialect.numbers;
         // Limits compared in the controller's number type, as grbl compares its floats.
-        target.iter().zip(self.travel).any(|(&t, (min, max))| {
-            min.is_some_and(|m| t < num.hold(m)) || max.is_some_and(|m| t > num.hold(m))
-        })
+        self.settings.soft_limits()
+            && target
+                .iter()
+                .zip(self.limits())
+                .any(|(&t, (min, max))| t < min || t > max)
     }
 
     /// Continues the blocked line; `true` once it is answered.
@@ -809,7 +1045,20 @@ impl Controller {
     fn apply(&mut self, action: SyncAction) {
         match action {
             SyncAction::Wait => {}
-            SyncAction::Spindle(spindle) => self.spindle = spindle,
+            SyncAction::Spindle(spindle) => {
+                self.spindle = spindle;
+                self.tracker.add(Flags {
+                    spindle: true,
+                    ..Flags::default()
+                });
+            }
+            SyncAction::Coolant(on) => {
+                self.coolant = on;
+                self.tracker.add(Flags {
+                    coolant: true,
+                    ..Flags::default()
+                });
+            }
             SyncAction::Pause => self.motion.feed_hold(),
             SyncAction::ProgramEnd => {
                 if let Some(Err(breach)) = self.guard.as_mut().map(|g| g.program_end()) {
@@ -817,6 +1066,15 @@ impl Controller {
                     return;
                 }
                 self.spindle.on = false;
+                self.coolant = false;
+                // grblHAL's program end refreshes the WCO and reports spindle and coolant
+                // (`gcode.c`).
+                self.tracker.add(Flags {
+                    wco: true,
+                    spindle: true,
+                    coolant: true,
+                    ..Flags::default()
+                });
                 self.output.push_str(&report::message("Pgm End"));
             }
         }
@@ -858,6 +1116,12 @@ impl Controller {
     }
 
     fn note_state(&mut self) {
+        if self.jogging && !self.motion.is_running() && self.exec.is_none() {
+            // The jog is over (done or cancelled): the parser goes on from where the machine
+            // stands (grblHAL syncs `gc_state.position` when jogging ends, `protocol.c`).
+            self.jogging = false;
+            self.parser.position = self.motion.position();
+        }
         let state = self.state();
         if state != self.last_state {
             self.last_state = state;
@@ -867,6 +1131,56 @@ impl Controller {
             });
         }
     }
+}
+
+/// How lines are read, from the number type and the settings.
+fn dialect(numbers: Numbers, settings: &Settings) -> Dialect {
+    Dialect {
+        numbers,
+        sync_on_offset_change: settings.report_mask() & report_bits::SYNC_ON_WCO_CHANGE != 0,
+        lathe: settings.lathe_mode(),
+        c_rotary: settings.c_rotary(),
+    }
+}
+
+/// The planner's dynamics from `$11`, `$110`–`$113` and `$120`–`$123`.
+fn dynamics(settings: &Settings) -> Dynamics {
+    Dynamics {
+        max_rate: settings.max_rate().map(|r| r / 60.0),
+        accel: settings.accel(),
+        junction_deviation: settings.junction_deviation(),
+    }
+}
+
+/// An axis' soft limits after `$13n` = `length`: the profile's, which `$$` shows as their
+/// span, kept while the span is; else from the profile's minimum over `length`; an axis
+/// the profile leaves unlimited gets grblHAL's own travel, `[−length, 0]`
+/// (`settings.axis[].max_travel` is stored negative), and none for a length of 0.
+fn travel(profile: (Option<f64>, Option<f64>), length: f64) -> (Option<f64>, Option<f64>) {
+    match profile {
+        // To within the 3 decimals `$$` shows: a span written back as read changes nothing.
+        (Some(min), Some(max)) if (max - min - length).abs() < 5e-4 => profile,
+        (Some(min), Some(_)) => (Some(min), Some(min + length)),
+        _ if length == 0.0 => (None, None),
+        _ => (Some(-length), Some(0.0)),
+    }
+}
+
+/// `$HELP` (`report_help` without a topic): the topics, then the setting groups' names in
+/// order.
+fn help_topics() -> String {
+    let eol = report::EOL;
+    let mut groups: Vec<&str> = settings::GROUPS
+        .iter()
+        .filter(|(id, ..)| *id != 0)
+        .map(|(_, _, name)| *name)
+        .collect();
+    groups.sort_unstable();
+    let mut out = format!("Help topics:{eol} Commands{eol} Settings{eol}");
+    for name in groups {
+        out.push_str(&format!(" {name}{eol}"));
+    }
+    out
 }
 
 fn check_options(options: &ControllerOptions) -> Result<(), ConfigError> {

@@ -96,6 +96,11 @@ pub struct ParserState {
     pub diameter: bool,
     /// Work coordinate system, 54..=59 (all with zero offset: G10 is not supported).
     pub coord_system: u8,
+    /// G99 (canned cycles retract to R) rather than G98; no canned cycle uses it here.
+    pub retract_r: bool,
+    /// The N of the last line executed, 0 without one (grblHAL's `gc_state.line_number`,
+    /// which the status report's `Ln:` shows while no block is queued).
+    pub line_number: u32,
     /// Feed rate: mm/min in G94 (as converted from the units in force), 1/min in G93.
     pub feed: f64,
     /// Spindle.
@@ -120,6 +125,8 @@ impl ParserState {
             inverse_time: false,
             diameter: false,
             coord_system: 54,
+            retract_r: false,
+            line_number: 0,
             feed: 0.0,
             spindle: Spindle {
                 on: false,
@@ -149,6 +156,12 @@ pub enum MotionKind {
         /// The F word, 1/min.
         inverse_minutes: f64,
     },
+    /// A jog (`$J=`): like a G1 in G94, but the feed override does not apply
+    /// (`mc_jog_execute` sets `no_feed_override`).
+    Jog {
+        /// Units per minute.
+        per_minute: f64,
+    },
 }
 
 /// A motion the line asks for.
@@ -164,8 +177,10 @@ pub struct MotionRequest {
 /// `protocol_buffer_synchronize`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SyncAction {
-    /// Nothing but the wait (coolant, coordinate-offset changes).
+    /// Nothing but the wait (coordinate-offset changes).
     Wait,
+    /// Flood coolant on (M8) or off (M9).
+    Coolant(bool),
     /// The spindle changes to this.
     Spindle(Spindle),
     /// M0: pause (feed hold) until cycle start.
@@ -199,9 +214,13 @@ pub struct Block {
 pub struct Dialect {
     /// The controller's number type.
     pub numbers: Numbers,
-    /// Wait for the queue before a G92 or G54–G59 change (grbl's
-    /// `FORCE_BUFFER_SYNC_DURING_WCO_CHANGE`, on by default).
+    /// Wait for the queue before a G92 or G54–G59 change (`$10` bit 8, on by default).
     pub sync_on_offset_change: bool,
+    /// Lathe mode (`$32=2`): G7 and G8 are accepted (grblHAL's `gcode.c` refuses them,
+    /// `error:20`, in any other mode).
+    pub lathe: bool,
+    /// C is rotary (`$376`): never scaled by G20.
+    pub c_rotary: bool,
 }
 
 /// A word: letter and value.
@@ -234,7 +253,7 @@ fn normalize(text: &str) -> Vec<u8> {
 /// grblHAL's `read_float`: optional sign, digits with at most one point, at least one
 /// digit. Digits past the ninth significant one are dropped (the value keeps its
 /// magnitude); leading zeros are not significant.
-fn read_float(bytes: &[u8], at: &mut usize) -> Option<f64> {
+pub(crate) fn read_float(bytes: &[u8], at: &mut usize) -> Option<f64> {
     let mut i = *at;
     let negative = match bytes.get(i) {
         Some(b'-') => {
@@ -321,6 +340,8 @@ enum Group {
     CoordSystem,
     PathControl,
     LatheMode,
+    Retract,
+    MacroCall,
     Stop,
     Spindle,
     Coolant,
@@ -333,6 +354,8 @@ struct Commands {
     dwell: bool,
     set_offset: bool,
     clear_offset: bool,
+    /// G53: this block's targets are machine coordinates.
+    absolute_override: bool,
     motion: Option<MotionMode>,
     plane: Option<u8>,
     incremental: Option<bool>,
@@ -340,6 +363,9 @@ struct Commands {
     inches: Option<bool>,
     coord_system: Option<u8>,
     diameter: Option<bool>,
+    retract_r: Option<bool>,
+    /// G65 or G66: a macro call (P names the macro); G67 ends a modal one.
+    macro_call: Option<u8>,
     stop: Option<u8>,
     spindle: Option<(bool, bool)>,
     coolant: Option<bool>,
@@ -389,12 +415,22 @@ pub fn interpret(
             steps: Vec::new(),
         });
     }
+    let (cmd, axis_command, values) = parse(&bytes, dialect)?;
+    check_and_run(cmd, axis_command, values, state, dialect)
+}
+
+/// A block's words read and classified (grbl's step 2: errors 1, 2, 4, 20, 21, 23, 24,
+/// 25).
+fn parse(
+    bytes: &[u8],
+    dialect: Dialect,
+) -> Result<(Commands, Option<AxisCommand>, Values), GrblError> {
     let mut cmd = Commands::default();
     let mut axis_command = None;
     let mut values = Values::default();
-    for word in words(&bytes)? {
+    for word in words(bytes)? {
         match word.letter {
-            b'G' => g_word(word.value, &mut cmd, &mut axis_command)?,
+            b'G' => g_word(word.value, &mut cmd, &mut axis_command, dialect)?,
             b'M' => m_word(word.value, &mut cmd)?,
             letter @ (b'F' | b'N' | b'P' | b'S' | b'X' | b'Z' | b'C') => {
                 if values.seen.contains(&letter) {
@@ -419,7 +455,7 @@ pub fn interpret(
             _ => return Err(GrblError::UnsupportedCommand),
         }
     }
-    check_and_run(cmd, axis_command, values, state, dialect)
+    Ok((cmd, axis_command, values))
 }
 
 /// Splits a code into its whole part and hundredths of a fraction, as grbl does.
@@ -433,11 +469,16 @@ fn g_word(
     value: f64,
     cmd: &mut Commands,
     axis_command: &mut Option<AxisCommand>,
+    dialect: Dialect,
 ) -> Result<(), GrblError> {
     let (code, mut mantissa) = split_code(value);
     let group = match code {
         4 => {
             cmd.dwell = true;
+            Group::NonModal
+        }
+        53 => {
+            cmd.absolute_override = true;
             Group::NonModal
         }
         92 => {
@@ -471,7 +512,7 @@ fn g_word(
             cmd.motion = Some(MotionMode::Cancelled);
             Group::Motion
         }
-        7 | 8 => {
+        7 | 8 if dialect.lathe => {
             cmd.diameter = Some(code == 7);
             Group::LatheMode
         }
@@ -511,6 +552,18 @@ fn g_word(
             cmd.inverse_time = Some(code == 93);
             Group::FeedMode
         }
+        // Macro calls: grblHAL's core always has them (ngc_params.c hooks
+        // `on_macro_execute`), the simulator has no macro to call.
+        65..=67 => {
+            cmd.macro_call = Some(code as u8);
+            Group::MacroCall
+        }
+        // Canned-cycle retract mode (modal group 10): grblHAL keeps it with or without
+        // canned cycles, so a post's G98/G99 preamble is accepted.
+        98 | 99 => {
+            cmd.retract_r = Some(code == 99);
+            Group::Retract
+        }
         _ => return Err(GrblError::UnsupportedCommand),
     };
     if mantissa != 0 {
@@ -540,6 +593,96 @@ fn m_word(value: f64, cmd: &mut Commands) -> Result<(), GrblError> {
         _ => return Err(GrblError::UnsupportedCommand),
     };
     cmd.claim(group)
+}
+
+/// Axis words in millimetres (X, Z; C too unless rotary) and X as a radius.
+fn axis_values(
+    axes: [Option<f64>; 3],
+    inches: bool,
+    diameter: bool,
+    dialect: Dialect,
+) -> [Option<f64>; 3] {
+    let mut axes = axes;
+    for (i, axis) in axes.iter_mut().enumerate() {
+        if let Some(v) = axis.as_mut() {
+            if inches && (i < 2 || !dialect.c_rotary) {
+                *v *= MM_PER_INCH;
+            }
+            if i == 0 && diameter {
+                *v /= 2.0;
+            }
+        }
+    }
+    axes
+}
+
+/// A jog the controller may run (`$J=`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Jog {
+    /// The N word, if any.
+    pub n: Option<u32>,
+    /// The motion: target in machine coordinates, [`MotionKind::Jog`].
+    pub request: MotionRequest,
+}
+
+/// Interprets the G-code of a `$J=` line (the text after the `=`) against `state`, as
+/// grblHAL's `gc_execute_block` does with its jog flag (`gcode.c`): G1 and G94 are
+/// enforced, F is required (`error:22`), S (and P without G4) are unused words (`error:36`), and only
+/// G20/G21, G90/G91 and G53 may be given (`error:16` for any other G or M code, checked
+/// after those). The parser's modes are left alone; only its position is to move to the
+/// target, once the controller has taken the jog, so that the next one starts from there. Soft
+/// limits are the controller's to check.
+pub fn jog(text: &str, state: &ParserState, dialect: Dialect) -> Result<Jog, GrblError> {
+    let (cmd, _, values) = parse(&normalize(text), dialect)?;
+    let n = match values.n {
+        Some(n) if n > MAX_LINE_NUMBER => return Err(GrblError::InvalidLineNumber),
+        n => n.map(|n| n.trunc() as u32),
+    };
+    let inches = cmd.inches.unwrap_or(state.inches);
+    let Some(feed) = values.f else {
+        return Err(GrblError::UndefinedFeedRate);
+    };
+    // The G1 check of a motion without a feed rate.
+    if feed == 0.0 && values.axes.iter().any(Option::is_some) {
+        return Err(GrblError::UndefinedFeedRate);
+    }
+    if values.s.is_some() || (values.p.is_some() && !cmd.dwell) {
+        return Err(GrblError::UnusedWords);
+    }
+    let allowed = [Group::Units, Group::Distance, Group::NonModal];
+    if cmd.groups.iter().any(|g| !allowed.contains(g))
+        || cmd.dwell
+        || cmd.set_offset
+        || cmd.clear_offset
+    {
+        return Err(GrblError::InvalidJogCommand);
+    }
+    let num = dialect.numbers;
+    let incremental = cmd.incremental.unwrap_or(state.incremental);
+    let axes = axis_values(values.axes, inches, state.diameter, dialect);
+    let mut target = state.position;
+    for (i, axis) in axes.iter().enumerate() {
+        if let Some(v) = axis {
+            target[i] = if cmd.absolute_override {
+                num.hold(*v)
+            } else if incremental {
+                num.add(state.position[i], *v)
+            } else {
+                num.add(*v, state.g92[i])
+            };
+        }
+    }
+    if !target.iter().all(|v| v.is_finite()) {
+        return Err(GrblError::InvalidTarget);
+    }
+    let per_minute = if inches { feed * MM_PER_INCH } else { feed };
+    Ok(Jog {
+        n,
+        request: MotionRequest {
+            target,
+            kind: MotionKind::Jog { per_minute },
+        },
+    })
 }
 
 /// grbl's error checks of a whole block, then its execution on a copy of the state that
@@ -586,22 +729,25 @@ fn check_and_run(
     if cmd.dwell && values.p.is_none() {
         return Err(GrblError::ValueWordMissing);
     }
+    if let Some(65 | 66) = cmd.macro_call {
+        // A macro call needs P (gcode.c); none exists here, as a P no macro has is
+        // answered in grblHAL (ngc_params.c: out of range).
+        return Err(if values.p.is_none() {
+            GrblError::ValueWordMissing
+        } else {
+            GrblError::ValueOutOfRange
+        });
+    }
 
     // Axis words: X and Z in mm (C is rotary and stays in degrees), X a radius.
     let diameter = cmd.diameter.unwrap_or(state.diameter);
-    let mut axes = values.axes;
-    for (i, axis) in axes.iter_mut().enumerate() {
-        if let Some(v) = axis.as_mut() {
-            if i < 2 {
-                *v = to_mm(*v);
-            }
-            if i == 0 && diameter {
-                *v /= 2.0;
-            }
-        }
-    }
+    let axes = axis_values(values.axes, inches, diameter, dialect);
     if cmd.set_offset && !has_axes {
         return Err(GrblError::NoAxisWords);
+    }
+    // The non-modal checks come before the motion's (gcode.c, steps 19 and 20).
+    if cmd.absolute_override && !matches!(motion, MotionMode::Rapid | MotionMode::Linear) {
+        return Err(GrblError::G53InvalidMotionMode);
     }
     let moves = axis_command == Some(AxisCommand::Motion) && has_axes;
     if moves && motion == MotionMode::Cancelled {
@@ -637,7 +783,7 @@ fn check_and_run(
     if let Some(coolant) = cmd.coolant {
         if coolant != next.coolant {
             next.coolant = coolant;
-            steps.push(Step::Sync(SyncAction::Wait));
+            steps.push(Step::Sync(SyncAction::Coolant(coolant)));
         }
     }
     if cmd.dwell {
@@ -656,6 +802,9 @@ fn check_and_run(
     }
     if let Some(incremental) = cmd.incremental {
         next.incremental = incremental;
+    }
+    if let Some(retract_r) = cmd.retract_r {
+        next.retract_r = retract_r;
     }
     if cmd.clear_offset {
         next.g92 = [0.0; 3];
@@ -681,7 +830,10 @@ fn check_and_run(
         let mut target = next.position;
         for (i, axis) in axes.iter().enumerate() {
             if let Some(v) = axis {
-                target[i] = if next.incremental {
+                target[i] = if cmd.absolute_override {
+                    // G53: machine coordinates, whatever the distance mode.
+                    num.hold(*v)
+                } else if next.incremental {
                     num.add(next.position[i], *v)
                 } else {
                     num.add(*v, next.g92[i])
@@ -705,6 +857,7 @@ fn check_and_run(
         // grbl: in G93 the feed rate is always undefined after the block.
         next.feed = 0.0;
     }
+    next.line_number = n.unwrap_or(0);
     match cmd.stop {
         Some(0) => steps.push(Step::Sync(SyncAction::Pause)),
         Some(2 | 30) => {

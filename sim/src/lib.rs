@@ -17,6 +17,7 @@
 //! - [`protocol`]: real-time bytes, the RX buffer, line assembly.
 //! - [`interpreter`]: G-code lines → modal state and steps, grbl's error numbers.
 //! - [`system`]: `$` commands.
+//! - [`settings`]: grblHAL's settings (`$$`, `$n=value`).
 //! - [`motion`]: grbl's look-ahead planner and an exact executor in simulated time.
 //! - [`record`]: the executed-motion record ([`ExecutedBlock`]), replayable.
 //! - [`report`]: everything printed (banner, status report, `$$`, `$I`, …).
@@ -81,6 +82,7 @@ pub mod protocol;
 pub mod record;
 pub mod report;
 pub mod serve;
+pub mod settings;
 pub mod system;
 
 #[cfg(test)]

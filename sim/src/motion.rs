@@ -87,6 +87,7 @@ impl Block {
             MotionKind::Rapid => MoveKind::Rapid,
             MotionKind::Feed { .. } => MoveKind::Feed,
             MotionKind::InverseTime { .. } => MoveKind::InverseTime,
+            MotionKind::Jog { .. } => MoveKind::Jog,
         }
     }
 
@@ -138,6 +139,8 @@ pub struct Motion {
     v: f64,
     running: bool,
     hold: Hold,
+    /// A motion cancel (jog cancel) is slowing the machine: once it stands, the queue goes.
+    cancelling: bool,
     feed_override: f64,
     rapid_override: f64,
     prev_unit: [f64; 3],
@@ -158,6 +161,7 @@ impl Motion {
             v: 0.0,
             running: false,
             hold: Hold::None,
+            cancelling: false,
             feed_override: 1.0,
             rapid_override: 1.0,
             prev_unit: [0.0; 3],
@@ -274,6 +278,7 @@ impl Motion {
             MotionKind::InverseTime { inverse_minutes } => {
                 (block.length * inverse_minutes / 60.0 * self.feed_override).min(block.rate_limit)
             }
+            MotionKind::Jog { per_minute } => (per_minute / 60.0).min(block.rate_limit),
         };
         speed.max(MIN_SPEED)
     }
@@ -339,6 +344,25 @@ impl Motion {
         true
     }
 
+    /// New axis rates, accelerations and junction deviation (setting writes, taken only
+    /// while the machine is idle): blocks queued from now on are planned with them.
+    pub fn set_dynamics(&mut self, dynamics: Dynamics) {
+        self.dynamics = dynamics;
+    }
+
+    /// Motion cancel (grblHAL's jog cancel): slow to a stop at the blocks' acceleration, as
+    /// a feed hold does, then drop every queued block (`state_await_motion_cancel`). The
+    /// block under way is recorded as cut short where the machine stopped. At rest, the
+    /// queue goes at once.
+    pub fn cancel(&mut self, now: f64) {
+        if self.running && self.v > 0.0 && self.hold != Hold::Complete {
+            self.cancelling = true;
+            self.hold = Hold::Decelerating;
+        } else {
+            self.abort(now);
+        }
+    }
+
     /// New override fractions (1.0 = 100 %) for feeds and rapids.
     pub fn set_overrides(&mut self, feed: f64, rapid: f64) {
         self.feed_override = feed;
@@ -363,6 +387,7 @@ impl Motion {
         self.v = 0.0;
         self.running = false;
         self.hold = Hold::None;
+        self.cancelling = false;
         moving
     }
 
@@ -590,7 +615,12 @@ impl Motion {
             self.v = 0.0;
             self.running = false;
             if self.hold == Hold::Decelerating {
-                self.hold = Hold::Complete;
+                self.hold = if self.cancelling {
+                    Hold::None
+                } else {
+                    Hold::Complete
+                };
+                self.cancelling = false;
             }
         } else {
             self.replan();
@@ -603,6 +633,13 @@ impl Motion {
 
     fn complete_hold(&mut self, at: f64, used: f64) -> StepOutcome {
         self.v = 0.0;
+        if self.cancelling {
+            self.abort(at);
+            return StepOutcome {
+                used,
+                event: Some(StepEvent::HoldComplete),
+            };
+        }
         self.hold = Hold::Complete;
         if let Some(record) = self.record.as_mut() {
             // Standing still until resumed: an explicit phase, so replay does not

@@ -14,8 +14,14 @@ use std::collections::VecDeque;
 pub enum Realtime {
     /// 0x18 (ctrl-X): soft reset.
     Reset,
-    /// `?`, 0x80, 0x87 or 0x05: status report.
+    /// `?`, 0x80 or 0x05: status report.
     StatusReport,
+    /// 0x87: the complete status report, every optional field in it (grblHAL's
+    /// `CMD_STATUS_REPORT_ALL`, `protocol.c`).
+    CompleteStatusReport,
+    /// 0x85: jog cancel. grblHAL empties the RX buffer (the line being read too) and, if
+    /// jogging, stops the jog (`CMD_JOG_CANCEL` in `protocol.c`).
+    JogCancel,
     /// `~` or 0x81: cycle start / resume.
     CycleStart,
     /// `!` or 0x82: feed hold.
@@ -71,7 +77,9 @@ pub fn classify(byte: u8) -> ByteClass {
     match byte {
         b'\n' | b'\r' => Stored,
         0x18 => Rt(Realtime::Reset),
-        b'?' | 0x80 | 0x87 | 0x05 => Rt(Realtime::StatusReport),
+        b'?' | 0x80 | 0x05 => Rt(Realtime::StatusReport),
+        0x87 => Rt(Realtime::CompleteStatusReport),
+        0x85 => Rt(Realtime::JogCancel),
         b'~' | 0x81 => Rt(Realtime::CycleStart),
         b'!' | 0x82 => Rt(Realtime::FeedHold),
         0x83 => Rt(Realtime::ParserStateReport),

@@ -47,6 +47,8 @@ pub enum MoveKind {
     Feed,
     /// G1 in inverse time (G93).
     InverseTime,
+    /// A jog (`$J=`), the operator's move rather than the program's.
+    Jog,
 }
 
 /// A stretch of constant acceleration along a block.

@@ -10,10 +10,14 @@ use clap::Parser;
 use std::ffi::OsStr;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::pin::Pin;
 use std::process::ExitCode;
+use std::task::Poll;
 use std::time::Duration;
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, ReadBuf};
 use tokio::signal::unix::{signal, Signal, SignalKind};
-use tokio_serial::SerialPort;
+use tokio::time::{timeout, Instant};
+use tokio_serial::{SerialPort, SerialStream};
 use whirl::config::connection::{MAX_CYCLE_US, MIN_CYCLE_US};
 use whirl::config::machine::MachineProfile;
 use whirl::judge::guard::DeltaGuard;
@@ -36,6 +40,29 @@ struct Cli {
     /// behind (a symlink to a /dev/pts/N since closed), which is replaced.
     #[arg(long, conflicts_with = "tcp")]
     pty: Option<PathBuf>,
+    /// With --pty: model a board that resets when its port is opened (the DTR line of an
+    /// Arduino or a USB serial adapter): each time a client opens the terminal the
+    /// controller powers up afresh, boots for --boot-time, dropping what arrives meanwhile,
+    /// then prints its banner. Without it, the controller powered up when whirl-sim started
+    /// and its banner waits in the terminal for the first client, as a board's waits in its
+    /// port.
+    #[arg(
+        long,
+        requires = "pty",
+        conflicts_with_all = ["tcp", "modbus_tcp", "modbus_rtu", "can_slcan"]
+    )]
+    reset_on_open: bool,
+    /// With --reset-on-open: how long the board boots, seconds of wall time, 0 to 10 (an
+    /// Arduino's boot loader takes about half a second, older ones up to 2).
+    #[arg(
+        long,
+        value_name = "SECONDS",
+        default_value_t = 0.5,
+        allow_hyphen_values = true,
+        value_parser = boot_time,
+        requires = "reset_on_open"
+    )]
+    boot_time: f64,
     /// Serve one connection on this TCP address (loopback unless you say otherwise).
     #[arg(long)]
     tcp: Option<String>,
@@ -176,7 +203,8 @@ async fn run(cli: Cli) -> Result<()> {
         rx_buffer_size: cli.rx,
         ..ControllerOptions::default()
     };
-    let mut controller = Controller::new(&whirl::judge::simulator::machine(&profile), options)?;
+    let machine = whirl::judge::simulator::machine(&profile);
+    let mut controller = Controller::new(&machine, options.clone())?;
     if let Some(guard) = guard {
         controller.set_guard(Box::new(guard));
     }
@@ -216,12 +244,31 @@ async fn run(cli: Cli) -> Result<()> {
             serve_rtu(master, bank, clock, log).await?;
         }
     } else if let Some(link) = &cli.pty {
-        // A board on a USB serial port booted long before the host opened it: the host
-        // never sees its power-up banner, so none is left waiting in the terminal (a soft
-        // reset shows one).
-        let (master, _slave, _link) = pty_at("--pty", link)?;
-        controller.take_output();
-        serve(master, &mut controller, serve_options, log).await?;
+        let (master, slave, _link) = pty_at("--pty", link)?;
+        if !cli.reset_on_open {
+            // Powered up when whirl-sim started: the banner waits in the terminal (`serve`
+            // writes it first) for whoever opens it, as grblHAL's waits in a board's port;
+            // the slave end stays open so the terminal outlives its clients.
+            let _slave = slave;
+            serve(master, &mut controller, serve_options, log).await?;
+        } else {
+            // No end of the terminal kept open here: the master then reads EIO
+            // while no client has it open, which is how an opening is seen.
+            drop(slave);
+            let boot = Duration::from_secs_f64(cli.boot_time);
+            let mut first = Some(controller);
+            let power_up = || -> Result<Controller> {
+                if let Some(controller) = first.take() {
+                    return Ok(controller);
+                }
+                let mut controller = Controller::new(&machine, options.clone())?;
+                if let Some(job) = &cli.job {
+                    controller.set_guard(Box::new(delta_guard(job, &profile)?));
+                }
+                Ok(controller)
+            };
+            serve_resetting(master, boot, power_up, serve_options, log).await?;
+        }
     } else {
         let addr = cli.tcp.as_deref().unwrap_or("127.0.0.1:0");
         let listener = tokio::net::TcpListener::bind(addr)
@@ -235,6 +282,119 @@ async fn run(cli: Cli) -> Result<()> {
         serve(socket, &mut controller, serve_options, log).await?;
     }
     Ok(())
+}
+
+/// The EIO of Linux: what reading a pseudo-terminal's master gives while no process has its
+/// slave end open.
+const EIO: i32 = 5;
+
+/// How often the master is tried while no client has the terminal open.
+const OPEN_POLL: Duration = Duration::from_millis(20);
+
+/// Whether a client has the terminal open (`Some(bytes)`: it has, and sent these), or not
+/// (`None`), as reading the master says within [`OPEN_POLL`]: EIO while none has, a wait for
+/// bytes while one has.
+async fn client(master: &mut SerialStream) -> Result<Option<Vec<u8>>> {
+    let mut buf = [0u8; 4096];
+    match timeout(OPEN_POLL, master.read(&mut buf)).await {
+        Err(_waiting) => Ok(Some(Vec::new())),
+        Ok(Ok(n)) => Ok(Some(buf[..n].to_vec())),
+        Ok(Err(e)) if e.raw_os_error() == Some(EIO) => {
+            tokio::time::sleep(OPEN_POLL).await;
+            Ok(None)
+        }
+        Ok(Err(e)) => Err(e).context("cannot read the pseudo-terminal"),
+    }
+}
+
+/// `--reset-on-open`: for each client that opens the terminal, the board resets: it boots
+/// for `boot`, the bytes sent meanwhile lost (a boot loader listens for its own protocol,
+/// not for grbl's), then a freshly powered-up controller from `power_up` prints its banner
+/// and serves until the client closes the terminal. Ends when no client comes, or one
+/// says nothing, for `options.idle_exit`.
+async fn serve_resetting(
+    mut master: SerialStream,
+    boot: Duration,
+    mut power_up: impl FnMut() -> Result<Controller>,
+    options: ServeOptions,
+    mut log: impl FnMut(&whirl_sim::Event),
+) -> Result<()> {
+    let mut since = Instant::now();
+    loop {
+        if client(&mut master).await?.is_none() {
+            if options
+                .idle_exit
+                .is_some_and(|idle| since.elapsed() >= idle)
+            {
+                return Ok(());
+            }
+            continue;
+        }
+        let booted = Instant::now() + boot;
+        while Instant::now() < booted {
+            // Dropped: the board is not listening yet.
+            client(&mut master).await?;
+        }
+        let mut controller = power_up()?;
+        let mut port = Hangup {
+            master: &mut master,
+            hung_up: false,
+        };
+        serve(&mut port, &mut controller, options, &mut log).await?;
+        if !port.hung_up {
+            // The client fell silent for the idle time.
+            return Ok(());
+        }
+        since = Instant::now();
+    }
+}
+
+/// The master of a terminal as a stream that ends when the client closes the terminal:
+/// the EIO that reading then gives is the end of the stream, as a closed socket's.
+struct Hangup<'a> {
+    master: &'a mut SerialStream,
+    /// The stream ended that way.
+    hung_up: bool,
+}
+
+impl AsyncRead for Hangup<'_> {
+    fn poll_read(
+        mut self: Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+        buf: &mut ReadBuf<'_>,
+    ) -> Poll<std::io::Result<()>> {
+        match Pin::new(&mut *self.master).poll_read(cx, buf) {
+            Poll::Ready(Err(e)) if e.raw_os_error() == Some(EIO) => {
+                self.hung_up = true;
+                Poll::Ready(Ok(()))
+            }
+            other => other,
+        }
+    }
+}
+
+impl AsyncWrite for Hangup<'_> {
+    fn poll_write(
+        mut self: Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+        buf: &[u8],
+    ) -> Poll<std::io::Result<usize>> {
+        Pin::new(&mut *self.master).poll_write(cx, buf)
+    }
+
+    fn poll_flush(
+        mut self: Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> Poll<std::io::Result<()>> {
+        Pin::new(&mut *self.master).poll_flush(cx)
+    }
+
+    fn poll_shutdown(
+        mut self: Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> Poll<std::io::Result<()>> {
+        Pin::new(&mut *self.master).poll_shutdown(cx)
+    }
 }
 
 /// The Δ guard of the job at `path`: the groove it measures the executed motion against.
@@ -309,6 +469,16 @@ fn counts(text: &str) -> Result<[f64; 3], String> {
 
 // The other numbers: each checked here, so that clap refuses a wrong one naming the option,
 // before anything starts.
+
+/// `--boot-time`: the boot's seconds, 0 to 10 (a boot loader waits up to 2 s).
+fn boot_time(text: &str) -> Result<f64, String> {
+    let seconds = number(text)?;
+    if (0.0..=10.0).contains(&seconds) {
+        Ok(seconds)
+    } else {
+        Err("must be a number of seconds from 0 to 10".into())
+    }
+}
 
 /// `--idle-exit`: seconds, up to a week; 0: never.
 fn idle_exit(text: &str) -> Result<f64, String> {
@@ -507,7 +677,7 @@ mod tests {
 
     #[test]
     fn numbers_are_refused_naming_the_option() {
-        let cases: [(&[&str], &str); 11] = [
+        let cases: [(&[&str], &str); 13] = [
             (&["--time-scale", "nan"], "--time-scale"),
             (&["--time-scale", "1e308"], "--time-scale"),
             (&["--time-scale", "-1"], "--time-scale"),
@@ -519,6 +689,8 @@ mod tests {
             (&["--idle-exit", "1e30"], "--idle-exit"),
             (&["--can-cycle-us", "0"], "--can-cycle-us"),
             (&["--can-counts", "10000,0,10000"], "--can-counts"),
+            (&["--reset-on-open", "--boot-time", "11"], "--boot-time"),
+            (&["--reset-on-open", "--boot-time", "nan"], "--boot-time"),
         ];
         for (args, option) in cases {
             let mut argv = vec!["whirl-sim", "--pty", "link"];
@@ -531,6 +703,36 @@ mod tests {
         let cli = Cli::try_parse_from(["whirl-sim", "--time-scale", "0", "--idle-exit", "0"]);
         let cli = cli.unwrap();
         assert_eq!((cli.time_scale, cli.idle_exit), (0.0, 0.0));
+    }
+
+    #[test]
+    fn reset_on_open_takes_a_boot_time_and_needs_a_pseudo_terminal() {
+        use clap::error::ErrorKind;
+        let parse = |args: &[&str]| {
+            let mut argv = vec!["whirl-sim"];
+            argv.extend_from_slice(args);
+            Cli::try_parse_from(argv)
+        };
+        let given = parse(&["--pty", "link", "--reset-on-open", "--boot-time", "1.5"]).unwrap();
+        assert_eq!((given.reset_on_open, given.boot_time), (true, 1.5));
+        // By default an Arduino's boot loader, half a second.
+        let bare = parse(&["--pty", "link", "--reset-on-open"]).unwrap();
+        assert_eq!((bare.reset_on_open, bare.boot_time), (true, 0.5));
+        assert!(!parse(&["--pty", "link"]).unwrap().reset_on_open);
+        for (args, kind) in [
+            (&["--reset-on-open"][..], ErrorKind::MissingRequiredArgument),
+            (
+                &["--pty", "link", "--boot-time", "1"],
+                ErrorKind::MissingRequiredArgument,
+            ),
+            (
+                &["--tcp", "127.0.0.1:0", "--reset-on-open"],
+                ErrorKind::ArgumentConflict,
+            ),
+        ] {
+            let error = parse(args).err().expect("refused");
+            assert_eq!(error.kind(), kind, "{args:?}");
+        }
     }
 
     #[test]

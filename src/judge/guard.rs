@@ -136,7 +136,8 @@ impl DeltaGuard {
 
 impl Guard for DeltaGuard {
     fn executed(&mut self, block: &ExecutedBlock) -> Result<(), Breach> {
-        if block.kind == MoveKind::Rapid {
+        // Rapids and jogs position the ring; the groove is the program's feeds.
+        if matches!(block.kind, MoveKind::Rapid | MoveKind::Jog) {
             return Ok(());
         }
         let scale = if self.x_diameter { 0.5 } else { 1.0 };
@@ -289,6 +290,23 @@ mod tests {
         assert!(answers[..lines.len() - 1].iter().all(|a| *a == "ok"));
         assert_eq!(answers[lines.len() - 1], "error:9");
         assert!(sim.guard().unwrap().measured().max_undercut_mm > job.cut.delta);
+    }
+
+    #[test]
+    fn jogs_are_positioning_and_not_measured() {
+        // A jog turning C back, which as a feed cannot be measured (below), is not judged:
+        // the operator's jogs, like rapids, position the ring.
+        let job = example("trapezoidal");
+        let profile = MachineProfile::builtin_sim().unwrap();
+        let mut sim = Controller::new(&machine(&profile), ControllerOptions::default()).unwrap();
+        sim.set_guard(Box::new(DeltaGuard::new(&job, &profile).unwrap()));
+        sim.receive(b"$J=G91 X5 C10 F500\n$J=G91 C-5 F500\n");
+        for _ in 0..100 {
+            sim.advance(0.1).unwrap();
+        }
+        let out = String::from_utf8(sim.take_output()).unwrap();
+        assert!(!out.contains("ALARM"), "{out}");
+        assert_eq!((sim.position().x, sim.position().c), (5.0, 5.0));
     }
 
     #[test]

@@ -1,8 +1,9 @@
 //! `whirl plan`: job + machine → a checked program and its report.
 //!
 //! The arrows of the data flow, in order: profile (validated) → linkage table X(ψ) →
-//! interference check → error budget → nodes → path → (LinuxCNC) blend-speed cap → limits.
-//! Every step that can refuse does so before anything is written.
+//! interference check → error budget → nodes → path → limits → post (on LinuxCNC, then the
+//! blend-speed cap of linked moves and the post again). Every step that can refuse does so
+//! before anything is written.
 
 pub mod budget;
 pub mod interference;
@@ -19,6 +20,7 @@ use crate::geometry::linkage::{Linkage, Ring, Whirling};
 use crate::geometry::profile::{ConcaveStretch, Profile, Rounding};
 use crate::plan::table::{Table, TableError};
 use crate::post::gcode::format::{decimals_for, MAX_DECIMALS};
+use crate::post::gcode::read_program;
 use crate::post::gcode::writer::{self, PostSettings};
 use crate::program::blending::{self, Accels};
 use crate::program::limits::{check_limits, LimitError};
@@ -401,15 +403,6 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         delta
     );
     let mut path = path::build(&nodes, &spec, &title);
-    // LinuxCNC blends consecutive linked moves parabolically, unbounded by G64 P: slow them
-    // until its blends are within the blend share. Slowing only lowers speeds, so the limits
-    // are checked after.
-    let capped = match (machine.dialect, machine.blend_tolerance_mm) {
-        (Dialect::LinuxCnc, Some(_)) => {
-            blending::cap_linked_feeds(&mut path.program, Accels::of(machine), blend)
-        }
-        _ => blending::Capped::default(),
-    };
     check_limits(&path.program, machine).map_err(|limit| PlanError::Limits { limit })?;
     let settings = PostSettings {
         dialect: machine.dialect,
@@ -419,7 +412,28 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         blend_tolerance_mm: machine.blend_tolerance_mm.map(|_| blend),
         max_line_length: machine.max_line_length,
     };
-    let text = writer::write(&path.program, &settings)?;
+    let mut text = writer::write(&path.program, &settings)?;
+    // LinuxCNC blends consecutive linked moves parabolically, and G64 P does not bound those
+    // blends: slow the moves until they are within the blend share. The corners are those of
+    // the polyline as posted, read back from the text; slowing only lowers speeds, so the
+    // limits checked above still hold, and the text is written again with the new F words.
+    let capped = match (machine.dialect, machine.blend_tolerance_mm) {
+        (Dialect::LinuxCnc, Some(_)) => {
+            let accels = Accels::of(machine);
+            let capped = match read_program(&text, machine.x_diameter()) {
+                Ok(posted) => {
+                    blending::cap_linked_feeds_as_posted(&mut path.program, &posted, accels, blend)
+                }
+                // The post's text always reads back; were it not to, its own corners.
+                Err(_) => blending::cap_linked_feeds(&mut path.program, accels, blend),
+            };
+            if capped.slowed > 0 {
+                text = writer::write(&path.program, &settings)?;
+            }
+            capped
+        }
+        _ => blending::Capped::default(),
+    };
     let report = Report {
         segments: path.segments,
         nodes_per_period: nodes.per_period(),

@@ -39,8 +39,8 @@
 //!   [`SerialError`] naming the port. The controller goes on with what it has received,
 //!   so the error carries the first line not known to have executed and the last one it
 //!   may run ([`Streamer::resume_point_now`]). An executed-path log that cannot be written
-//!   fails the run too, but holds the machine first: a run that cannot be recorded must
-//!   not go on cutting.
+//!   fails the run too, but as a stop does (feed hold, the end once the machine stands,
+//!   with where to resume): a run that cannot be recorded must not go on cutting.
 //!
 //! Every run is logged between [`log::Event::Start`] and [`log::Event::End`]
 //! (also when it fails, as far as the log can still be written), with times in seconds
@@ -54,7 +54,7 @@ use std::time::Duration;
 use thiserror::Error;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, WriteHalf};
 use tokio::time::{interval_at, sleep_until, Instant, Interval, MissedTickBehavior};
-use tokio_serial::SerialPortBuilderExt;
+use tokio_serial::{ClearBuffer, SerialPort, SerialPortBuilderExt};
 use tracing::Instrument;
 
 use super::control::{Command, Commands};
@@ -302,16 +302,24 @@ pub enum SerialError {
     /// The program failed the machine check; nothing was sent.
     #[error(transparent)]
     Preflight(#[from] PreflightError),
-    /// The executed-path log could not be written (the machine was held first).
-    #[error(transparent)]
-    Log(#[from] LogError),
+    /// The executed-path log could not be written: the machine was held, and the run ended
+    /// once it stood (or the wait for that ran out).
+    #[error("{error}: the machine was held")]
+    Log {
+        /// Why the log could not be written.
+        error: LogError,
+        /// Where to resume, as far as the controller's reports tell.
+        resume: Option<ResumePoint>,
+    },
 }
 
 impl SerialError {
     /// Where to resume after a failure mid-stream.
     pub fn resume(&self) -> Option<&ResumePoint> {
         match self {
-            SerialError::Io { resume, .. } | SerialError::Eof { resume, .. } => resume.as_ref(),
+            SerialError::Io { resume, .. }
+            | SerialError::Eof { resume, .. }
+            | SerialError::Log { resume, .. } => resume.as_ref(),
             _ => None,
         }
     }
@@ -330,8 +338,12 @@ pub fn link_utilization(bytes: u64, baud: u32, time: Duration) -> Option<f64> {
 /// Opens the serial port at `path` (8N1, no flow control, as grbl expects) and streams
 /// `lines` over it with [`stream`]. The machine check, if asked for, runs before the port
 /// is opened: opening resets some boards (an Arduino running grbl), so a program that
-/// will be refused should not even do that. `options.port_name` becomes `path` and
-/// `options.baud` defaults to `baud`.
+/// will be refused should not even do that. What waited in the port's input is cleared
+/// once it is open: the output of an earlier session, a banner printed before anyone
+/// listened; only what the controller says from now on answers what is sent from now on
+/// (the streamer's connect phase, [`StreamerConfig::check_state`], then finds out whether
+/// the controller is up). `options.port_name` becomes `path` and `options.baud` defaults
+/// to `baud`.
 pub async fn stream_port(
     path: &str,
     baud: u32,
@@ -348,6 +360,10 @@ pub async fn stream_port(
             port: path.to_owned(),
             error,
         })?;
+    // Best effort: what is left in the input is what the connect phase copes with anyway.
+    if let Err(error) = port.clear(ClearBuffer::Input) {
+        tracing::warn!(%error, port = path, "cannot clear the port's input");
+    }
     options.port_name = path.to_owned();
     options.baud.get_or_insert(baud);
     stream(port, lines, options, log).await
@@ -410,6 +426,7 @@ pub async fn stream<P: AsyncRead + AsyncWrite + Unpin>(
         motion_done: false,
         stopped: None,
         stand_by: None,
+        log_failure: None,
         alarms: Vec::new(),
         wco: None,
         last_status: None,
@@ -444,6 +461,9 @@ struct Run<'a> {
     stopped: Option<StopReason>,
     /// After a [`Command::Stop`]: the latest a report of the machine at rest may come.
     stand_by: Option<Instant>,
+    /// Why the log could not be written, once it could not: nothing more is logged, and the
+    /// run stops as for a [`Command::Stop`].
+    log_failure: Option<LogError>,
     alarms: Vec<u16>,
     /// The last work coordinate offset seen, in the order the reports came.
     wco: Option<Vec<f64>>,
@@ -455,9 +475,19 @@ impl Run<'_> {
         self.start.elapsed().as_secs_f64()
     }
 
-    fn write_log(&mut self, event: log::Event) -> Result<(), LogError> {
+    /// Logs `event`. A log that cannot be written stops the run as a [`Command::Stop`]
+    /// would (feed hold, then the end once the machine stands): the controller is not left
+    /// executing what nobody records.
+    fn write_log(&mut self, event: log::Event) {
+        if self.log_failure.is_some() {
+            return;
+        }
         let t = self.now();
-        self.log.write(t, event)
+        if let Err(error) = self.log.write(t, event) {
+            tracing::warn!(%error, "the log cannot be written: feed hold");
+            self.log_failure = Some(error);
+            self.stop("the executed-path log cannot be written");
+        }
     }
 
     fn io_error(&self, error: std::io::Error) -> SerialError {
@@ -469,9 +499,9 @@ impl Run<'_> {
     }
 
     /// Logs where a run that did not complete resumes, if it is known.
-    fn log_resume(&mut self, resume: Option<&ResumePoint>) -> Result<(), LogError> {
+    fn log_resume(&mut self, resume: Option<&ResumePoint>) {
         let Some(resume) = resume else {
-            return Ok(());
+            return;
         };
         let possibly = &resume.possibly_executed;
         self.write_log(log::Event::ResumeAt {
@@ -487,13 +517,25 @@ impl Run<'_> {
         commands: Option<Commands>,
     ) -> Result<StreamOutcome, SerialError> {
         self.start = Instant::now();
-        self.write_log(log::Event::Start {
+        // Nothing is sent before the run's Start is in the log.
+        let start = log::Event::Start {
             program: self.program.clone(),
             lines: self.lines.len(),
             transport: TRANSPORT.to_owned(),
-        })?;
+        };
+        self.log
+            .write(0.0, start)
+            .map_err(|error| SerialError::Log {
+                error,
+                resume: None,
+            })?;
         tracing::debug!(program = %self.program, "stream started");
-        match self.drive(port, poll_interval, commands).await {
+        let (mut reader, mut writer) = tokio::io::split(port);
+        let mut out: Vec<u8> = Vec::new();
+        let driven = self
+            .exchange(&mut reader, &mut writer, &mut out, poll_interval, commands)
+            .await;
+        match driven {
             Ok(ending) => {
                 let reason = match &ending {
                     Ending::Completed => None,
@@ -505,52 +547,30 @@ impl Run<'_> {
                 };
                 tracing::debug!(?ending, "stream ended");
                 if ending != Ending::Completed {
-                    self.log_resume(self.streamer.resume_point().as_ref())?;
+                    self.log_resume(self.streamer.resume_point().as_ref());
                 }
                 self.write_log(log::Event::End {
                     completed: ending == Ending::Completed,
                     reason,
-                })?;
-                Ok(self.outcome(ending))
+                });
+                match self.log_failure.take() {
+                    Some(error) => Err(SerialError::Log {
+                        error,
+                        resume: self.streamer.resume_point(),
+                    }),
+                    None => Ok(self.outcome(ending)),
+                }
             }
             Err(error) => {
                 tracing::warn!(%error, "stream failed");
-                // Best effort: the log may be what failed.
-                let _ = self.log_resume(error.resume());
-                let _ = self.write_log(log::Event::End {
+                self.log_resume(error.resume());
+                self.write_log(log::Event::End {
                     completed: false,
                     reason: Some(error.to_string()),
                 });
                 Err(error)
             }
         }
-    }
-
-    /// The run over `port`; a log that cannot be written holds the machine before the run
-    /// fails.
-    async fn drive<P: AsyncRead + AsyncWrite + Unpin>(
-        &mut self,
-        port: P,
-        poll_interval: Option<Duration>,
-        commands: Option<Commands>,
-    ) -> Result<Ending, SerialError> {
-        let (mut reader, mut writer) = tokio::io::split(port);
-        let mut out: Vec<u8> = Vec::new();
-        let result = self
-            .exchange(&mut reader, &mut writer, &mut out, poll_interval, commands)
-            .await;
-        if let Err(SerialError::Log(error)) = result {
-            tracing::warn!(%error, "the log cannot be written: feed hold");
-            self.streamer
-                .interrupt("the executed-path log cannot be written");
-            if let Some(bytes) = self.streamer.transmit() {
-                out.extend_from_slice(&bytes);
-            }
-            // The hold matters more than what it costs to say so.
-            let _ = self.write_final(&mut writer, &mut out).await;
-            return Err(SerialError::Log(error));
-        }
-        result
     }
 
     /// The loop: bytes out, bytes in, the poll clock, the caller's commands, the watchdog.
@@ -575,7 +595,7 @@ impl Run<'_> {
             if let Some(bytes) = self.streamer.transmit() {
                 out.extend_from_slice(&bytes);
             }
-            let progressed = self.drain_events()?;
+            let progressed = self.drain_events();
             if progressed || self.streamer.is_held() {
                 last_progress = Instant::now();
             }
@@ -612,7 +632,7 @@ impl Run<'_> {
                 at = next_tick(&mut ticker) => {
                     self.streamer.poll(at.duration_since(self.start));
                 }
-                command = next_command(&mut commands) => self.command(command)?,
+                command = next_command(&mut commands) => self.command(command),
                 () = wait_until(deadline) => {
                     if self.stand_by.take().is_some() {
                         // The wait after a stop ran out: the run ends at the top of the loop.
@@ -621,7 +641,7 @@ impl Run<'_> {
                             text: "the controller did not report the machine at rest after \
                                    the feed hold: check it stands before resuming"
                                 .to_owned(),
-                        })?;
+                        });
                         continue;
                     }
                     let after = self.timeout.unwrap_or_default();
@@ -630,7 +650,7 @@ impl Run<'_> {
                     if let Some(bytes) = self.streamer.transmit() {
                         out.extend_from_slice(&bytes);
                     }
-                    self.drain_events()?;
+                    self.drain_events();
                     self.write_final(writer, out).await?;
                     return Ok(Ending::TimedOut { after });
                 }
@@ -658,7 +678,7 @@ impl Run<'_> {
         }
     }
 
-    fn command(&mut self, command: Command) -> Result<(), SerialError> {
+    fn command(&mut self, command: Command) {
         tracing::debug!(?command, "caller command");
         let text = match command {
             Command::Hold => {
@@ -670,9 +690,7 @@ impl Run<'_> {
                 "resume requested"
             }
             Command::Stop { reason } => {
-                self.streamer.interrupt(reason);
-                let wait = self.timeout.unwrap_or(STAND_TIMEOUT);
-                self.stand_by = Some(Instant::now() + wait);
+                self.stop(reason);
                 "stop requested: feed hold, then the run ends once the machine stands"
             }
             Command::Abort => {
@@ -682,8 +700,14 @@ impl Run<'_> {
         };
         self.write_log(log::Event::Message {
             text: text.to_owned(),
-        })?;
-        Ok(())
+        });
+    }
+
+    /// Feed hold; the run ends once the machine stands, or when the wait for that runs out.
+    fn stop(&mut self, reason: impl Into<String>) {
+        self.streamer.interrupt(reason);
+        let wait = self.timeout.unwrap_or(STAND_TIMEOUT);
+        self.stand_by.get_or_insert(Instant::now() + wait);
     }
 
     /// How the run ends now, if it does.
@@ -700,21 +724,21 @@ impl Run<'_> {
     }
 
     /// Logs the streamer's events; `true` if any showed the controller doing something.
-    fn drain_events(&mut self) -> Result<bool, LogError> {
+    fn drain_events(&mut self) -> bool {
         let mut any = false;
         let mut progressed = false;
         while let Some(event) = self.streamer.next_event() {
             any = true;
-            progressed |= self.handle(event)?;
+            progressed |= self.handle(event);
         }
         if any {
             self.report_progress();
         }
-        Ok(progressed)
+        progressed
     }
 
     /// Logs one event; `true` if it shows the controller doing something.
-    fn handle(&mut self, event: Event) -> Result<bool, LogError> {
+    fn handle(&mut self, event: Event) -> bool {
         let log = match event {
             Event::Sent { index, line_no } => {
                 self.sent += 1;
@@ -723,12 +747,12 @@ impl Run<'_> {
                 self.write_log(log::Event::Sent {
                     line: index + 1,
                     text,
-                })?;
-                return Ok(false);
+                });
+                return false;
             }
             Event::AuxSent { line, text } => {
                 tracing::debug!(?line, %text, "sent (streamer's own line)");
-                return Ok(false);
+                return false;
             }
             Event::Acked { index } => {
                 self.acked += 1;
@@ -769,7 +793,7 @@ impl Run<'_> {
             Event::AuxAnswered { line, error } => {
                 tracing::debug!(?line, ?error, "answer to the streamer's own line");
                 match error {
-                    None => return Ok(true),
+                    None => return true,
                     Some(code) => log::Event::Message {
                         text: format!(
                             "{} was refused: error:{code} ({})",
@@ -794,11 +818,11 @@ impl Run<'_> {
             }
             Event::Feedback(text) => {
                 tracing::debug!(%text, "controller feedback");
-                return Ok(true);
+                return true;
             }
             Event::Options(options) => {
                 tracing::debug!(?options, "build options");
-                return Ok(true);
+                return true;
             }
             Event::RxSize { bytes } => {
                 tracing::debug!(bytes, "receive buffer size");
@@ -821,19 +845,19 @@ impl Run<'_> {
             Event::Stopped { reason } => {
                 tracing::debug!(%reason, "stream stopped");
                 self.stopped = Some(reason);
-                return Ok(true);
+                return true;
             }
             Event::Done => {
                 tracing::debug!("every line acknowledged");
                 self.all_acked_at = Some(self.start.elapsed());
                 self.bytes_at_all_acked = self.bytes_written;
-                return Ok(true);
+                return true;
             }
             Event::MotionDone => {
                 // Nothing new from the controller: the status report before it said so.
                 tracing::debug!("motion finished");
                 self.motion_done = true;
-                return Ok(false);
+                return false;
             }
             Event::Unrecognized(text) => {
                 tracing::debug!(%text, "unrecognised controller output");
@@ -842,12 +866,12 @@ impl Run<'_> {
                 }
             }
         };
-        self.write_log(log)?;
-        Ok(true)
+        self.write_log(log);
+        true
     }
 
     /// Logs a status report; `true` if the state or the position changed.
-    fn on_status(&mut self, status: Status) -> Result<bool, LogError> {
+    fn on_status(&mut self, status: Status) -> bool {
         if let Some(wco) = &status.wco {
             self.wco = Some(wco.clone());
         }
@@ -872,8 +896,8 @@ impl Run<'_> {
             },
         };
         self.last_status = Some(status);
-        self.write_log(event)?;
-        Ok(changed)
+        self.write_log(event);
+        changed
     }
 
     /// X, Z, C in machine coordinates: `MPos`, or `WPos` plus the last `WCO`.

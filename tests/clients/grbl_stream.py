@@ -18,18 +18,22 @@ counting) and implemented by grbl's doc/script/stream.py (gnea/grbl):
   else (status reports "<...>", "[MSG:...]" and other bracketed messages, ALARM lines,
   banners, blank lines) is shown on stderr and otherwise ignored.
 
-No banner is required: a controller that booted before the port was opened (a board on a
-USB serial link, whirl-sim on a pseudo-terminal) sends none, so the client flushes its
-input and starts. Every wait for an answer is bounded (--timeout, 10 s by default).
+No banner is required: a controller that booted before the port was opened sends none
+after the client opens it (the banner of its power-up, if it waits in the port, as
+whirl-sim leaves it on a pseudo-terminal, is old), so the client flushes its input and
+starts. Every wait for an answer is bounded (--timeout, 10 s by default).
 
 At the end one machine-readable line goes to stdout:
 
-    lines=N ok=N error=N extra=N
+    lines=N ok=N error=N extra=N bytes=N elapsed_us=N
 
 `extra` counts answers that arrived with no line in flight, during the stream or in a
-short quiet period after the last answer. The exit status is 0 only when every line got
-exactly one "ok"; otherwise 1, with the first line that got an error (its number in the
-program file and its text) or the reason the stream stopped on stderr.
+short quiet period after the last answer. `bytes` counts the bytes written and
+`elapsed_us` the microseconds from the first byte written to the last line's answer read
+(0 if none was answered), so bytes x 10 / baud over it is how busy the client kept an
+8N1 link. The exit status is 0 only when every line got exactly one "ok"; otherwise 1,
+with the first line that got an error (its number in the program file and its text) or
+the reason the stream stopped on stderr.
 
 Requires Python 3 and pyserial.
 """
@@ -75,8 +79,16 @@ class Streamer:
         self.timeout = timeout
         self.received = b""  # bytes read but not yet a complete line
         self.in_flight = deque()  # (program line number, block, bytes) awaiting an answer
-        self.tally = {"lines": 0, "ok": 0, "error": 0, "extra": 0}
+        self.tally = {"lines": 0, "ok": 0, "error": 0, "extra": 0, "bytes": 0}
         self.first_error = None  # (program line number, block, answer)
+        self.first_write = None  # time.monotonic() of the first byte written
+        self.last_answer = None  # time.monotonic() of the last answer to a line in flight
+
+    def elapsed_us(self):
+        """Microseconds from the first byte written to the last answer, 0 without both."""
+        if self.first_write is None or self.last_answer is None:
+            return 0
+        return round((self.last_answer - self.first_write) * 1e6)
 
     def read_line(self, wait):
         """The next complete line from the controller, stripped, or None after `wait` s."""
@@ -100,6 +112,7 @@ class Streamer:
             print(f"unexpected {text!r} with no line in flight", file=sys.stderr)
             return
         number, block, _ = self.in_flight.popleft()
+        self.last_answer = time.monotonic()
         if text == "ok":
             self.tally["ok"] += 1
         else:
@@ -138,9 +151,12 @@ class Streamer:
         self.take_waiting()
         while sum(n for _, _, n in self.in_flight) + len(data) >= self.rx:
             self.wait_for_answer()
+        if self.first_write is None:
+            self.first_write = time.monotonic()
         self.port.write(data)
         self.in_flight.append((number, block, len(data)))
         self.tally["lines"] += 1
+        self.tally["bytes"] += len(data)
 
     def run(self, program):
         """Stream `program` (its raw lines), then wait for every answer and any extra one."""
@@ -202,7 +218,8 @@ def main():
 
     ok = failure is None
     if streamer is not None:
-        print(" ".join(f"{k}={v}" for k, v in streamer.tally.items()))
+        tally = dict(streamer.tally, elapsed_us=streamer.elapsed_us())
+        print(" ".join(f"{k}={v}" for k, v in tally.items()))
         if streamer.first_error is not None:
             number, block, text = streamer.first_error
             print(f"first error: line {number} {block!r} answered {text}", file=sys.stderr)

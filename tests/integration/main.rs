@@ -7,6 +7,7 @@ mod control;
 mod dry_run;
 mod faults_fieldbus;
 mod faults_serial;
+mod grbl_open;
 mod layers;
 mod link;
 mod linkage;

@@ -6,6 +6,8 @@ use super::*;
 const F64: Dialect = Dialect {
     numbers: Numbers(NumberType::F64),
     sync_on_offset_change: true,
+    lathe: true,
+    c_rotary: true,
 };
 
 fn run(lines: &[&str]) -> Result<(ParserState, Vec<Block>), GrblError> {
@@ -165,7 +167,7 @@ fn f32_targets_keep_their_magnitude() {
     // whose spacing there is 1/64°.
     let dialect = Dialect {
         numbers: Numbers(NumberType::F32),
-        sync_on_offset_change: true,
+        ..F64
     };
     let mut state = ParserState::new([0.0, 0.0, 180_000.0], [0.0; 3]);
     interpret("G92 C0", &mut state, dialect).unwrap();

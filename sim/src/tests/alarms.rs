@@ -48,7 +48,7 @@ fn soft_limit_stops_alarms_and_nothing_after_runs() {
     assert_eq!(
         out,
         [
-            "GrblHAL 1.1f ['$' or '$HLP' for help]",
+            "GrblHAL 1.1f ['$' or '$HELP' for help]",
             "[MSG:'$H'|'$X' to unlock]"
         ]
     );
@@ -92,7 +92,7 @@ fn soft_reset_in_motion_alarms_3_and_clears_the_queue() {
         out,
         [
             "ALARM:3",
-            "GrblHAL 1.1f ['$' or '$HLP' for help]",
+            "GrblHAL 1.1f ['$' or '$HELP' for help]",
             "[MSG:'$H'|'$X' to unlock]"
         ]
     );
@@ -119,7 +119,7 @@ fn soft_reset_when_held_or_idle_keeps_the_machine_unlocked() {
     assert_eq!(sim.state(), MachineState::Hold { complete: true });
     sim.receive(&[0x18]);
     // grbl's realtime_cmds.md: not in motion, position retained, no alarm.
-    assert_eq!(output(&mut sim), ["GrblHAL 1.1f ['$' or '$HLP' for help]"]);
+    assert_eq!(output(&mut sim), ["GrblHAL 1.1f ['$' or '$HELP' for help]"]);
     assert_eq!(sim.state(), MachineState::Idle);
     assert_eq!(send(&mut sim, "G0 X0\n"), ["ok"]);
 }
@@ -149,7 +149,7 @@ fn check_mode_executes_nothing() {
         [
             "[MSG:Disabled]",
             "ok",
-            "GrblHAL 1.1f ['$' or '$HLP' for help]"
+            "GrblHAL 1.1f ['$' or '$HELP' for help]"
         ]
     );
     assert_eq!(sim.state(), MachineState::Idle);

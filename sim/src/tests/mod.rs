@@ -5,6 +5,7 @@
 
 mod alarms;
 mod fuzz;
+mod grblhal;
 mod guard;
 mod motion;
 mod streaming;

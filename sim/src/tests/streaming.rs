@@ -7,7 +7,7 @@ use crate::MachineState;
 #[test]
 fn banner_at_power_up_and_after_reset() {
     // grbl's interface.md: the start-up message prints at power-up and after every reset.
-    let banner = "\r\nGrblHAL 1.1f ['$' or '$HLP' for help]\r\n";
+    let banner = "\r\nGrblHAL 1.1f ['$' or '$HELP' for help]\r\n";
     let mut sim = Controller::new(&profile(), ControllerOptions::default()).unwrap();
     assert_eq!(sim.take_output(), banner.as_bytes());
     sim.receive(&[0x18]);
@@ -147,37 +147,50 @@ fn settings_list_the_profiles_axes_in_grbl_numbering() {
     }
     assert_eq!(out.last().map(String::as_str), Some("ok"));
     assert_eq!(send(&mut sim, "$112\n"), ["$112=3000.000", "ok"]);
-    // Settings are the profile's: writing one is refused.
-    assert_eq!(send(&mut sim, "$112=100\n"), ["error:3"]);
-    assert_eq!(send(&mut sim, "$999\n"), ["error:3"]);
+    // A setting grblHAL does not have is error:53, "setting disabled" (report.c's
+    // report_grbl_setting).
+    assert_eq!(send(&mut sim, "$999\n"), ["error:53"]);
 }
 
 #[test]
 fn dollar_commands_and_their_errors() {
     let mut sim = new_sim();
+    // report.c's report_help_message, whatever the build.
     assert_eq!(
         send(&mut sim, "$\n"),
-        ["[HLP:$$ $# $G $I $N $C $X $H ~ ! ? ctrl-x]", "ok"]
+        [
+            "[HLP:$$ $# $G $I $N $x=val $Nx=line $J=line $SLP $C $X $H $B ~ ! ? ctrl-x]",
+            "ok"
+        ]
     );
+    // report.c's report_gcode_modes in lathe mode: G7/G8 after the coordinate system,
+    // G97 after the feed mode, then G40 G49 G98 G50, S through ftoa with no decimals.
     assert_eq!(
         send(&mut sim, "$G\n"),
-        ["[GC:G0 G54 G17 G21 G90 G94 G8 M5 M9 T0 F0 S0]", "ok"]
+        [
+            "[GC:G0 G54 G8 G17 G21 G90 G94 G97 G40 G49 G98 G50 M5 M9 T0 F0 S0.]",
+            "ok"
+        ]
     );
     assert_eq!(send(&mut sim, "$N\n"), ["$N0=", "$N1=", "ok"]);
     // No homing switches: error 5.
     assert_eq!(send(&mut sim, "$H\n"), ["error:5"]);
-    // Not idle (a move under way): $$, $I, $# and $C answer error 8.
+    // Not idle (a move under way): $$, $I, $N, $C and settings answer error 8 (system.c).
     send(&mut sim, "\nG0 X100\n");
     sim.advance(0.1).unwrap();
-    for command in ["$$", "$I", "$#", "$C"] {
+    for command in ["$$", "$I", "$N", "$C", "$11", "$11=0.02"] {
         assert_eq!(
             send(&mut sim, &format!("{command}\n")),
             ["error:8"],
             "{command}"
         );
     }
-    // $G and $X are allowed in any state.
+    // $G, $# and $X are allowed in any state.
     assert_eq!(send(&mut sim, "$X\n"), ["ok"]);
+    assert_eq!(
+        send(&mut sim, "$#\n").last().map(String::as_str),
+        Some("ok")
+    );
     let params = {
         run_until_idle(&mut sim, 0.05, 10.0);
         send(&mut sim, "G92 X0\n$#\n")
@@ -217,7 +230,8 @@ fn status_report_fields() {
     sim.advance(1.0).unwrap();
     let report = send(&mut sim, "?").remove(0);
     // State, MPos with X Y Z C (Y always 0), buffer state, the executing N, feed 600 and
-    // the spindle speed, then WCO in the first report after power-up.
+    // the spindle speed, then (report.c: the override counter starts at 0 with the
+    // banner) the overrides and the spindle running clockwise.
     assert!(report.starts_with("<Run|MPos:"), "{report}");
     let fields: Vec<&str> = report.trim_matches(['<', '>']).split('|').collect();
     let mpos: Vec<f64> = fields[1]
@@ -232,7 +246,7 @@ fn status_report_fields() {
     assert_eq!(fields[2], "Bf:34,1023");
     assert_eq!(fields[3], "Ln:42");
     assert_eq!(fields[4], "FS:600,3000");
-    assert!(fields.iter().any(|f| f.starts_with("WCO:")));
+    assert_eq!(fields[5..], ["Ov:100,100,100", "A:S", "TLR:0"]);
 }
 
 #[test]

@@ -274,6 +274,9 @@ fn plan(
         r.cusp_mm,
         r.cycle_time_s
     )?;
+    if let Some(line) = r.blending_summary() {
+        say!("{line}")?;
+    }
     Ok(ExitCode::SUCCESS)
 }
 

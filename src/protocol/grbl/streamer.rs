@@ -96,15 +96,33 @@
 //! or `Alarm` taken after the hold), so the run ends with the machine at rest and the
 //! resume point read from the report that shows it there (`Ln:` of the held block).
 //!
-//! # The state before the first line
+//! # Connecting: the state before the first line
 //!
 //! With [`StreamerConfig::check_state`] the streamer asks `?` before anything else and
-//! reads the answer: a controller left held by an interrupted run gets a soft reset (at
+//! sends no line before a status report answers: that report says the controller is up
+//! and listening, and what state it is in. A board that resets when its port opens (the
+//! DTR line of an Arduino or a USB serial adapter) is in its boot loader for 100 ms to 2 s
+//! and drops the bytes sent meanwhile, the first `?` among them; the poll
+//! ([`Streamer::poll`]) asks again at every interval until one is answered. Its banner,
+//! whenever it comes in this phase, is the boot, not a reset: the streamer asks `?` once
+//! more and waits for the answer, since a `?` sent before the banner may have been lost.
+//! A banner waiting from before the port opened is the same (the transport clears the
+//! port's input on open, but a banner may still be on its way).
+//!
+//! The answer decides: a controller left held by an interrupted run gets a soft reset (at
 //! rest, grbl keeps its position and raises no alarm) and is asked again; one in alarm
 //! (locked out: every line would come back `error:9`) stops the stream with
 //! [`StopReason::AlarmAtStart`], or with [`StreamerConfig::unlock`] gets `$X` first; one
 //! running, jogging or homing stops it with [`StopReason::Busy`]. Nothing but `?` and the
 //! reset goes out before the answer.
+//!
+//! Until the first line of the program (or of a resume preamble) has gone out, a banner is
+//! a boot too, a late one (a board whose banner follows its first answer, as some print it
+//! when the host opens their USB port): the streamer's own lines in flight (`$I`, `$X`)
+//! are taken as lost with the controller's buffer, `$I` is asked again, and with
+//! [`StreamerConfig::check_state`] the state is asked again before anything else. Once a
+//! program or preamble line has gone out, a banner is a reset and stops the stream (see
+//! [above](self#alarms-and-resets)).
 //!
 //! # When the motion is done
 //!
@@ -218,8 +236,9 @@ pub struct Streamer {
     realtime: Vec<u8>,
     input: LineBuffer,
     events: VecDeque<Event>,
-    /// A line has been handed out: a banner now means a reset.
-    lines_sent: bool,
+    /// A line of the program or of the resume preamble has been handed out: a banner now
+    /// means a reset (before, it is the controller booting).
+    started: bool,
     reset_requested: bool,
     /// Why the stream will stop once drained.
     pending: Option<StopReason>,
@@ -335,7 +354,7 @@ impl Streamer {
             realtime: Vec::new(),
             input: LineBuffer::new(),
             events: VecDeque::new(),
-            lines_sent: false,
+            started: false,
             reset_requested: false,
             pending: None,
             stop_reason: None,
@@ -372,7 +391,9 @@ impl Streamer {
     fn after_banner(&mut self) {
         if self.config.check_state {
             self.phase = Phase::CheckState;
-            self.realtime.push(realtime::STATUS);
+            if !self.realtime.contains(&realtime::STATUS) {
+                self.realtime.push(realtime::STATUS);
+            }
         } else {
             self.begin();
         }
@@ -683,7 +704,7 @@ impl Streamer {
         }
         self.in_flight.push_back(InFlight { line, bytes });
         self.in_flight_bytes += bytes;
-        self.lines_sent = true;
+        self.started |= matches!(line, LineRef::Program(_) | LineRef::Aux(Aux::Preamble(_)));
     }
 
     fn on_response(&mut self, response: Response, raw: String) {
@@ -836,8 +857,12 @@ impl Streamer {
             }
             return;
         }
-        if !self.lines_sent && !self.reset_requested {
+        if !self.started
+            && !self.reset_requested
+            && matches!(self.phase, Phase::Query | Phase::Streaming)
+        {
             self.events.push_back(Event::Banner(text));
+            self.boot();
             return;
         }
         tracing::warn!(banner = %text, "controller reset");
@@ -855,6 +880,24 @@ impl Streamer {
             StopReason::ControllerReset
         };
         self.stop(reason);
+    }
+
+    /// A banner before the stream started: the controller booted (see [the module
+    /// docs](self#connecting-the-state-before-the-first-line)). Its receive buffer is gone
+    /// with the streamer's own lines in it; the boot cleared any sticky error, and whether
+    /// `$X` is needed is for the state check to say again.
+    fn boot(&mut self) {
+        tracing::debug!("controller banner before the first program line: a boot");
+        let lost_build_info = self
+            .in_flight
+            .drain(..)
+            .any(|entry| entry.line == LineRef::Aux(Aux::BuildInfo));
+        self.in_flight_bytes = 0;
+        self.aux_queue.retain(|aux| *aux == Aux::BuildInfo);
+        if lost_build_info && self.aux_queue.is_empty() {
+            self.aux_queue.push_back(Aux::BuildInfo);
+        }
+        self.after_banner();
     }
 
     fn on_options(&mut self, options: BuildOptions) {
@@ -926,7 +969,7 @@ impl Streamer {
         }
     }
 
-    /// The state reported before the first line; see [the module docs](self#the-state-before-the-first-line).
+    /// The state reported before the first line; see [the module docs](self#connecting-the-state-before-the-first-line).
     fn on_start_state(&mut self, state: &MachineState) {
         match state {
             MachineState::Idle | MachineState::Check => self.begin(),

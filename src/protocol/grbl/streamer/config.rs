@@ -24,8 +24,10 @@ pub struct StreamerConfig {
     pub rx_size: usize,
     /// Send `$I` first and adopt the receive buffer size of its `[OPT:…]` line.
     pub query_build_info: bool,
-    /// Send no line before the controller's banner (for boards that reset when the port
-    /// opens, such as an Arduino running grbl, which would drop lines sent while booting).
+    /// Send nothing, not even `?`, before the controller's banner: for a board that resets
+    /// when its port opens and must not see a byte while booting. One that booted before
+    /// the port opened prints no banner, so this waits for ever there;
+    /// [`StreamerConfig::check_state`] copes with both.
     pub wait_for_banner: bool,
     /// Status report interval for [`Streamer::poll`](super::Streamer::poll); `None` never
     /// polls, and then no status report says when the motion is done
@@ -39,10 +41,12 @@ pub struct StreamerConfig {
     /// Used by [`Streamer::resume_from`](super::Streamer::resume_from): a dwell after
     /// restarting the spindle, seconds (0: none).
     pub spin_up_dwell_s: f64,
-    /// Ask the controller's state (`?`) before the first line and act on it: idle goes on;
+    /// Connect first: ask the controller's state (`?`, again at every poll while no answer
+    /// comes, and after every banner) and send no line before a status report says it is
+    /// up; then act on the state it reports: idle goes on;
     /// held (a stop left it so) gets a soft reset, which keeps the position of a machine
     /// at rest, then goes on; in alarm stops, unless [`StreamerConfig::unlock`]; anything
-    /// else (running, jogging, homing) stops. See [the streamer's docs](super#the-state-before-the-first-line).
+    /// else (running, jogging, homing) stops. See [the streamer's docs](super#connecting-the-state-before-the-first-line).
     pub check_state: bool,
     /// With [`StreamerConfig::check_state`]: a controller in alarm is unlocked with `$X`
     /// (the operator has said the machine is fit to go on).

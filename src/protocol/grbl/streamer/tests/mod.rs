@@ -1,6 +1,7 @@
 //! The streamer's unit tests, against the model controller ([`Fake`]) or bytes written by
 //! hand: the fixtures here, the tests by topic in the sibling files.
 
+mod connect;
 mod interrupts;
 mod motion;
 mod properties;
