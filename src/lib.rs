@@ -37,6 +37,7 @@
 //! - [`log`]: the executed-path log (JSON lines) and its summary.
 //! - [`transport`]: the async edges that move a protocol's bytes.
 //! - [`judge`]: the swept-volume measurement, the simulator and dry runs.
+//! - [`console`]: `whirl serve`, the operator's web console.
 //! - [`papers`]: the founding papers' geometry reproduced, outside the data flow: it checks
 //!   the measurement engine's methods and backs `whirl sweep`.
 //!
@@ -69,6 +70,7 @@
 //! ```
 
 pub mod config;
+pub mod console;
 pub mod geometry;
 pub mod judge;
 pub mod log;

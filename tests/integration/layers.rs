@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 /// The layers in the order they may import each other: a module may name its own layer
 /// and the ones before it.
-const LAYERS: [&str; 9] = [
+const LAYERS: [&str; 10] = [
     "geometry",
     "config",
     "program",
@@ -20,6 +20,7 @@ const LAYERS: [&str; 9] = [
     "log",
     "transport",
     "judge",
+    "console",
 ];
 
 /// Outside the data flow: the papers' geometry, which only the command line reaches.

@@ -129,6 +129,26 @@ pub(crate) enum Command {
         #[arg(long, value_enum, default_value_t = Controller::WhirlSim)]
         controller: Controller,
     },
+    /// Serve the operator's web console: the jobs under --jobs with their plans and
+    /// verification, dry runs on the simulator with live position, progress, alarms, the
+    /// groove as it is cut, and Hold, Resume, Stop (docs/console.md). Listens on loopback
+    /// unless told otherwise; elsewhere only with an access token.
+    Serve {
+        /// A machine the console runs (a profile; repeat for more); default: the built-in
+        /// simulator's.
+        #[arg(long = "machine")]
+        machines: Vec<PathBuf>,
+        /// The folder of the job files the console may read (nothing outside it).
+        #[arg(long, default_value = ".")]
+        jobs: PathBuf,
+        /// The address to listen on (IP:PORT; port 0: any free one, printed at start).
+        #[arg(long, default_value = "127.0.0.1:8480")]
+        listen: std::net::SocketAddr,
+        /// The access token every action then needs (at least 16 characters); required
+        /// for an address other hosts reach.
+        #[arg(long)]
+        token: Option<String>,
+    },
     /// Read executed-path logs.
     Log {
         #[command(subcommand)]

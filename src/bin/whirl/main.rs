@@ -7,6 +7,7 @@ mod args;
 mod files;
 mod interrupt;
 mod numbers;
+mod serve;
 mod terminal;
 
 use anyhow::{bail, Context, Result};
@@ -139,6 +140,12 @@ fn run(cli: Cli) -> Result<ExitCode> {
             };
             dry_run(paths, options, controller)
         }
+        Command::Serve {
+            machines,
+            jobs,
+            listen,
+            token,
+        } => serve::run(&machines, &jobs, listen, token.as_deref()),
         Command::Log { command } => {
             match command {
                 LogCommand::Summary { log } => {
@@ -301,6 +308,13 @@ fn stream(
     let posted = Posted::read(name.as_str(), &text, machine)
         .with_context(|| format!("cannot read {name}"))?;
     posted.check(machine)?;
+    // One run per machine: refused, naming the holder, while another process (a console,
+    // another terminal) runs this port.
+    let _lock = whirl::console::lock::MachineLock::acquire(
+        &whirl::console::lock::lock_dir(),
+        &whirl::console::link_key(link),
+        &whirl::console::lock::this_process(),
+    )?;
     let mut log = ExecLog::append(log)?;
     let bar = terminal::progress_bar();
     options.progress = bar.as_ref().map(terminal::Bar::callback);

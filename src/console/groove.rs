@@ -1,0 +1,165 @@
+//! The groove as the console draws it: the axial section the executed moves cut so far,
+//! against the target, the error magnified, with the Δ band; and the measured error of the
+//! whole cut at a run's end.
+//!
+//! The same engine as `whirl log plot --job` ([`crate::judge::measure`]), fed the executed
+//! moves of a run and of the runs it resumed, so a stop and a resume show as one cut. The
+//! section is taken one pitch wide around where the ring cuts now (the last move's Z), so
+//! the operator sees the cut as it grows.
+
+use crate::config::job::Job;
+use crate::judge::measure::{Motion, VerifyError};
+use crate::judge::svg::{Plot, Series};
+use crate::judge::verify::{self, CheckError};
+use crate::log::{Event, Record};
+
+use super::registry::Measured;
+
+/// The magnification that draws Δ as about a twentieth of the pitch, as round as
+/// `whirl log plot` makes it (1, 2 or 5 × 10ⁿ, at least 1).
+fn magnification(delta: f64, pitch: f64) -> f64 {
+    let raw = (pitch / 20.0) / delta;
+    let decade = 10f64.powf(raw.log10().floor());
+    [5.0, 2.0, 1.0]
+        .iter()
+        .map(|m| m * decade)
+        .find(|m| *m <= raw)
+        .unwrap_or(decade)
+        .max(1.0)
+}
+
+/// The cutting moves among `records` (rapids position, they do not cut), and the Z of the
+/// last one.
+fn motion(records: &[Record]) -> Result<(Motion, Option<f64>), VerifyError> {
+    let mut motion = Motion::empty();
+    let mut z = None;
+    for (i, r) in records.iter().enumerate() {
+        if let Event::Executed {
+            from,
+            to,
+            rapid: false,
+            ..
+        } = &r.event
+        {
+            motion.push(*from, *to, i + 1)?;
+            z = Some(to[1]);
+        }
+    }
+    Ok((motion, z))
+}
+
+/// The axial section `records`' executed moves cut, against `job`'s target, with the Δ
+/// band (the target moved Δ out and in along its normal, magnified as the error is);
+/// `None` before the ring has turned through the work.
+pub fn section(job: &Job, records: &[Record]) -> Result<Option<Plot>, CheckError> {
+    let (motion, z) = motion(records)?;
+    let Some(z) = z.filter(|_| motion.is_turning()) else {
+        return Ok(None);
+    };
+    let target = verify::target(job)?;
+    let pitch = job.groove.lead / f64::from(job.groove.starts);
+    let magnify = magnification(job.cut.delta, pitch);
+    let mut plot = target.section_plot(&motion, z, magnify);
+    let offset = job.cut.delta * magnify;
+    let band = |sign: f64| band(&plot.series[0].points, sign * offset);
+    let (outer, inner) = (band(1.0), band(-1.0));
+    plot.series.push(Series {
+        label: format!("Δ band (± {} mm × {magnify})", job.cut.delta),
+        colour: "seagreen",
+        points: outer,
+    });
+    plot.series.push(Series {
+        label: String::new(),
+        colour: "seagreen",
+        points: inner,
+    });
+    Ok(Some(plot))
+}
+
+/// `points` moved `offset` along the polyline's normal (the section's, in its own plane:
+/// the surface normal projected into the axial plane is normal to the section curve).
+/// Where the polyline jumps (from one start's flank to the next), a point keeps the
+/// normal of its nearer neighbour.
+fn band(points: &[(f64, f64)], offset: f64) -> Vec<(f64, f64)> {
+    let n = points.len();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (points[i.saturating_sub(1)], points[(i + 1).min(n - 1)]);
+            let (dz, dr) = (b.0 - a.0, b.1 - a.1);
+            let length = dz.hypot(dr);
+            if length == 0.0 {
+                return points[i];
+            }
+            (
+                points[i].0 - dr / length * offset,
+                points[i].1 + dz / length * offset,
+            )
+        })
+        .collect()
+}
+
+/// The whole cut measured against `job`'s groove over its formed length, as `whirl verify`
+/// measures a program; an error before the ring has turned through the work.
+pub fn measure(job: &Job, records: &[Record]) -> Result<Measured, CheckError> {
+    let (motion, _) = motion(records)?;
+    if !motion.is_turning() {
+        return Err(VerifyError::NoTurning.into());
+    }
+    let m = verify::target(job)?.measure(&motion)?;
+    let delta = job.cut.delta;
+    Ok(Measured {
+        max_overcut_mm: m.max_overcut_mm,
+        max_undercut_mm: m.max_undercut_mm,
+        delta_mm: delta,
+        within_delta: m.max_overcut_mm <= delta && m.max_undercut_mm <= delta,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_band_lies_offset_along_the_normal_of_the_section() {
+        // A straight flank at 45°: its normal is (−1, 1)/√2.
+        let points = [(0.0, 0.0), (1.0, 1.0), (2.0, 2.0)];
+        let moved = band(&points, 2f64.sqrt());
+        for ((z, r), (mz, mr)) in points.iter().zip(&moved) {
+            assert!((mz - (z - 1.0)).abs() < 1e-12 && (mr - (r + 1.0)).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn delta_draws_as_at_most_a_twentieth_of_the_pitch() {
+        // Pitch 7 mm, Δ 0.01 mm: 35× exactly would be a twentieth; the round one below is 20.
+        assert_eq!(magnification(0.01, 7.0), 20.0);
+        assert_eq!(magnification(0.001, 2.0), 100.0);
+        assert_eq!(magnification(10.0, 1.0), 1.0);
+    }
+
+    #[test]
+    fn nothing_is_drawn_before_the_ring_has_turned() {
+        let job = Job::load(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/examples/trapezoidal/job.toml"
+        )))
+        .unwrap();
+        let rapid = Record {
+            t: 0.0,
+            event: Event::Executed {
+                line: Some(1),
+                times: [0.0, 1.0],
+                from: [0.0; 3],
+                to: [10.0, 0.0, 0.0],
+                rapid: true,
+            },
+        };
+        assert!(section(&job, std::slice::from_ref(&rapid))
+            .unwrap()
+            .is_none());
+        assert!(matches!(
+            measure(&job, &[rapid]),
+            Err(CheckError::Verify(VerifyError::NoTurning))
+        ));
+    }
+}

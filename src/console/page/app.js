@@ -1,0 +1,190 @@
+// The whirl console's page: plain script, no build step, nothing from the internet.
+// Runs live in the server; this page subscribes to them (server-sent events) and presses
+// buttons through the API.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+let views = [];
+let grooveShown = { machine: null, executed: -1, at: 0 };
+
+function show() {
+  const page = (location.hash || "#run").slice(1);
+  for (const p of document.querySelectorAll(".page")) {
+    p.classList.toggle("current", p.id === "page-" + page);
+  }
+  for (const a of document.querySelectorAll("nav a")) {
+    a.classList.toggle("current", a.id === "nav-" + page);
+  }
+}
+window.addEventListener("hashchange", show);
+
+async function api(path, body) {
+  const init = body === undefined ? {} : {
+    method: "POST",
+    headers: { "Content-Type": "application/json" },
+    body: JSON.stringify(body),
+  };
+  const response = await fetch(path, init);
+  const text = await response.text();
+  const data = text ? JSON.parse(text) : null;
+  if (!response.ok) throw new Error(data && data.error ? data.error : response.statusText);
+  return data;
+}
+
+function fill(select, names) {
+  select.replaceChildren(...names.map((n) => new Option(n, n)));
+}
+
+function duration(s) {
+  if (s === null || s === undefined) return "–";
+  const m = Math.floor(s / 60);
+  return m + ":" + String(Math.floor(s % 60)).padStart(2, "0");
+}
+
+function mm(x) { return x.toFixed(4); }
+
+async function jobsPage(machines, jobs) {
+  fill($("jobs-machine"), machines);
+  const body = $("jobs-table").querySelector("tbody");
+  body.replaceChildren();
+  jobs.forEach((job, i) => {
+    const row = body.insertRow();
+    row.dataset.job = job;
+    row.insertCell().textContent = job;
+    for (const key of ["segments", "delta", "bound", "time", "verify"]) {
+      row.insertCell().className = "job-" + key;
+    }
+    const actions = row.insertCell();
+    const plan = document.createElement("button");
+    plan.textContent = "Plan";
+    plan.id = "plan-" + i;
+    plan.onclick = () => planJob(row, "plan");
+    const verify = document.createElement("button");
+    verify.textContent = "Verify";
+    verify.id = "verify-" + i;
+    verify.onclick = () => planJob(row, "verify");
+    actions.append(plan, " ", verify);
+  });
+}
+
+async function planJob(row, what) {
+  $("jobs-error").textContent = "";
+  const cell = (k) => row.querySelector(".job-" + k);
+  cell(what === "plan" ? "segments" : "verify").textContent = "…";
+  try {
+    const r = await api("/api/" + what, { job: row.dataset.job, machine: $("jobs-machine").value });
+    cell("segments").textContent = r.segments;
+    cell("delta").textContent = r.delta_mm;
+    cell("bound").textContent = mm(r.max_error_mm);
+    cell("time").textContent = duration(r.cycle_time_s);
+    if (r.verify) {
+      const v = r.verify;
+      cell("verify").textContent = (v.within_delta ? "within Δ" : "BEYOND Δ") +
+        ": overcut " + mm(v.max_overcut_mm) + ", undercut " + mm(v.max_undercut_mm);
+    }
+    row.classList.add("planned");
+  } catch (e) {
+    $("jobs-error").textContent = row.dataset.job + ": " + e.message;
+    cell(what === "plan" ? "segments" : "verify").textContent = "";
+  }
+}
+
+function current() {
+  const machine = $("run-machine").value;
+  return views.find((v) => v.machine === machine);
+}
+
+function render() {
+  const v = current();
+  const running = !!v && v.phase === "running";
+  $("btn-hold").disabled = !running;
+  $("btn-resume").disabled = !running;
+  $("btn-stop").disabled = !running;
+  $("run-start").disabled = running;
+  if (!v) return;
+  $("run-title").textContent = "#" + v.id + " " + v.job + " on " + v.machine + " over " +
+    v.transport + " at " + v.time_scale + "×" + (v.resumed_at ? ", resumed at line " + v.resumed_at : "") +
+    (running ? " (running)" : " (ended)");
+  $("run-state").textContent = v.state || "–";
+  $("run-line").textContent = v.line ? v.line + " of " + v.total : "–";
+  $("run-progress").value = v.total ? v.done / v.total : 0;
+  $("run-done").textContent = v.done + " of " + v.total + " " + v.unit;
+  $("run-left").textContent = duration(v.left_s);
+  $("run-position").textContent = v.position ?
+    "X " + v.position[0].toFixed(3) + " mm, Z " + v.position[1].toFixed(3) + " mm, C " + v.position[2].toFixed(2) + "°" : "–";
+  $("run-link").textContent = v.link_use === null ? "–" : (100 * v.link_use).toFixed(1) + " %";
+  $("run-outcome").textContent = v.outcome || "–";
+  $("run-measured").textContent = v.measured ?
+    (v.measured.within_delta ? "within Δ" : "beyond Δ") + ": overcut " + mm(v.measured.max_overcut_mm) +
+    " mm, undercut " + mm(v.measured.max_undercut_mm) + " mm (Δ " + v.measured.delta_mm + " mm)" : "–";
+  $("run-alarms").replaceChildren(...v.alarms.map((a) => Object.assign(document.createElement("li"), { textContent: a })));
+  $("run-messages").replaceChildren(...v.messages.map((m) => Object.assign(document.createElement("li"), { textContent: m })));
+  const offer = !running && v.resume && !v.completed;
+  $("resume-offer").hidden = !offer;
+  if (offer) {
+    $("resume-text").textContent = "Stopped. Resume at line " + v.resume.line +
+      (v.resume.possibly_run_to ? " (lines up to " + v.resume.possibly_run_to + " may have run: re-entering along the groove cuts them again harmlessly)" : "") + ".";
+    $("btn-resume-at").textContent = "Resume at line " + v.resume.line;
+  }
+  groove(v);
+}
+
+async function groove(v) {
+  const now = Date.now();
+  const fresh = grooveShown.machine !== v.machine || grooveShown.executed !== v.executed;
+  if (!fresh || (v.phase === "running" && now - grooveShown.at < 2000)) return;
+  grooveShown = { machine: v.machine, executed: v.executed, at: now };
+  const response = await fetch("/api/runs/" + encodeURIComponent(v.machine) + "/groove.svg");
+  if (response.status === 200) {
+    $("groove-plot").innerHTML = await response.text();
+    $("groove-caption").textContent = "Run #" + v.id + ", " + v.job + ": the axial section cut so far (" +
+      v.executed + " executed moves) against the target, the error magnified, with the Δ band.";
+  }
+}
+
+async function press(button) {
+  $("run-error").textContent = "";
+  try {
+    await api("/api/runs/" + encodeURIComponent($("run-machine").value) + "/" + button, {});
+  } catch (e) {
+    $("run-error").textContent = e.message;
+  }
+}
+
+async function main() {
+  show();
+  const session = await api("/api/session");
+  $("login-link").hidden = !(session.token_required && !session.authorised);
+  const [machines, jobs] = await Promise.all([api("/api/machines"), api("/api/jobs")]);
+  await jobsPage(machines, jobs);
+  fill($("run-machine"), machines);
+  fill($("run-job"), jobs);
+  $("run-machine").onchange = render;
+  $("run-form").onsubmit = async (event) => {
+    event.preventDefault();
+    $("run-error").textContent = "";
+    try {
+      await api("/api/runs", {
+        machine: $("run-machine").value,
+        job: $("run-job").value,
+        transport: $("run-transport").value,
+        time_scale: Number($("run-scale").value),
+      });
+    } catch (e) {
+      $("run-error").textContent = e.message;
+    }
+  };
+  $("btn-hold").onclick = () => press("hold");
+  $("btn-resume").onclick = () => press("resume");
+  $("btn-stop").onclick = () => press("stop");
+  $("btn-resume-at").onclick = () => press("resume-at");
+  const events = new EventSource("/api/events");
+  events.addEventListener("runs", (event) => {
+    views = JSON.parse(event.data);
+    $("link-state").textContent = "live";
+    render();
+  });
+  events.onerror = () => { $("link-state").textContent = "reconnecting…"; };
+}
+
+main().catch((e) => { $("run-error").textContent = e.message; });

@@ -1,0 +1,598 @@
+//! A console run from request to end: every refusal settled before anything starts
+//! (machine, path, job, plan, the machine's limits, the lock), then the dry run on a thread
+//! of its own, its progress and log read into the [`Registry`] as it goes.
+//!
+//! A run gets its own thread and single-threaded runtime: the simulator runs as fast as its
+//! time scale lets it and must not slow the server, and the run must outlive any page.
+
+use super::groove;
+use super::lock::{self, LockError, MachineLock};
+use super::paths::{JobDir, PathError};
+use super::registry::{Inputs, Registry, ResumePoint, RunError, RunView};
+use super::resume::{resume_serial, ResumeOptions};
+use super::token::Token;
+use crate::config::job::Job;
+use crate::config::machine::MachineProfile;
+use crate::judge::dry_run::{self, DryRunOptions};
+use crate::log::{Event, ExecLog, Record};
+use crate::transport::{self, Commands, Posted, Progress, ProgressFn, TransportKind};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// The emulated link's baud rate in a console dry run.
+const BAUD: u32 = 115_200;
+
+/// How often a run's log is read into its view, at most.
+const LOG_READ_EVERY: Duration = Duration::from_millis(250);
+
+/// The slowest and fastest time scales a console run takes: from a tenth of real time
+/// (to watch a cut closely) to as fast as a dry run of hours should go in a minute.
+pub const TIME_SCALES: (f64, f64) = (0.1, 1000.0);
+
+/// One `whirl serve`: its machines, its jobs folder, its token and its runs.
+pub struct Console {
+    /// The machines, by profile name.
+    pub machines: BTreeMap<String, MachineProfile>,
+    /// Where the jobs are.
+    pub jobs: JobDir,
+    /// Required of every action when set.
+    pub token: Option<Token>,
+    /// The runs.
+    pub registry: Registry,
+    /// Where the machine locks are.
+    lock_dir: PathBuf,
+    /// This process, as a lock names it.
+    holder: String,
+}
+
+/// A run the page asks for.
+#[derive(Debug, Clone, serde::Deserialize)]
+pub struct RunRequest {
+    /// The machine's name.
+    pub machine: String,
+    /// The job, relative to the jobs folder.
+    pub job: String,
+    /// `serial`, `modbus-tcp`, `modbus-rtu` or `can-slcan`.
+    pub transport: String,
+    /// Simulated seconds per wall second.
+    pub time_scale: f64,
+}
+
+/// Why a run, a plan or a verification was refused.
+#[derive(Debug, thiserror::Error)]
+pub enum StartError {
+    /// No such machine.
+    #[error("no machine \"{0}\" in this console (see --machine)")]
+    UnknownMachine(String),
+    /// The job path.
+    #[error(transparent)]
+    Path(#[from] PathError),
+    /// The job file.
+    #[error("{0}")]
+    Job(String),
+    /// The plan.
+    #[error("cannot plan {job}: {error}")]
+    Plan {
+        /// The job.
+        job: String,
+        /// Why.
+        error: String,
+    },
+    /// A transport the simulator does not serve, or a program the machine refuses.
+    #[error("{0}")]
+    Preflight(String),
+    /// A time scale out of range.
+    #[error("time scale {0} is out of range: {min} to {max}", min = TIME_SCALES.0, max = TIME_SCALES.1)]
+    TimeScale(f64),
+    /// The machine is busy here, or nothing to press.
+    #[error(transparent)]
+    Run(#[from] RunError),
+    /// Another process runs the machine.
+    #[error(transparent)]
+    Lock(#[from] LockError),
+    /// Nothing to resume.
+    #[error("machine \"{0}\" has no stopped run to resume")]
+    NothingToResume(String),
+    /// A resume over a fieldbus transport.
+    #[error(
+        "the console resumes serial dry runs; this {0} run is resumed with \
+         whirl stream --resume-at"
+    )]
+    ResumeTransport(&'static str),
+    /// The run's thread could not be started.
+    #[error("cannot start the run: {0}")]
+    Thread(std::io::Error),
+}
+
+/// What a run was started from, kept for its resume.
+struct RunInputs {
+    job_name: String,
+    job: Job,
+    posted: Posted,
+    transport: TransportKind,
+    time_scale: f64,
+}
+
+/// The transports a console dry run takes, by their names.
+fn transport(name: &str) -> Result<TransportKind, StartError> {
+    [
+        TransportKind::Serial,
+        TransportKind::ModbusTcp,
+        TransportKind::ModbusRtu,
+        TransportKind::CanSlcan,
+    ]
+    .into_iter()
+    .find(|t| t.name() == name)
+    .ok_or_else(|| {
+        StartError::Preflight(format!(
+            "transport \"{name}\": the simulator serves serial, modbus-tcp, modbus-rtu and \
+             can-slcan"
+        ))
+    })
+}
+
+impl Console {
+    /// A console of `machines` and the jobs in `jobs`, locking machines in
+    /// [`lock::lock_dir`].
+    pub fn new(
+        machines: BTreeMap<String, MachineProfile>,
+        jobs: JobDir,
+        token: Option<Token>,
+    ) -> Console {
+        Console {
+            machines,
+            jobs,
+            token,
+            registry: Registry::default(),
+            lock_dir: lock::lock_dir(),
+            holder: lock::this_process(),
+        }
+    }
+
+    fn machine(&self, name: &str) -> Result<&MachineProfile, StartError> {
+        self.machines
+            .get(name)
+            .ok_or_else(|| StartError::UnknownMachine(name.to_owned()))
+    }
+
+    /// The job `name` and its program planned for `machine`.
+    fn planned(
+        &self,
+        name: &str,
+        machine: &MachineProfile,
+    ) -> Result<(Job, crate::plan::Plan), StartError> {
+        let path = self.jobs.resolve(name)?;
+        let job = Job::load(&path).map_err(|e| StartError::Job(e.to_string()))?;
+        let plan = crate::plan::plan(&job, machine).map_err(|e| StartError::Plan {
+            job: name.to_owned(),
+            error: e.to_string(),
+        })?;
+        Ok((job, plan))
+    }
+
+    /// The plan report of job `name` on machine `machine`, as `whirl plan --report` writes it.
+    pub fn plan(&self, name: &str, machine: &str) -> Result<serde_json::Value, StartError> {
+        let (_, plan) = self.planned(name, self.machine(machine)?)?;
+        Ok(serde_json::to_value(&plan.report).expect("a plan report serialises"))
+    }
+
+    /// The planned program of job `name` on `machine` measured against its groove, as
+    /// `whirl plan --verify` reports it.
+    pub fn verify(&self, name: &str, machine: &str) -> Result<serde_json::Value, StartError> {
+        let profile = self.machine(machine)?;
+        let (job, plan) = self.planned(name, profile)?;
+        let verified =
+            crate::judge::verify::verify(&job, profile, &plan.text, false).map_err(|e| {
+                StartError::Plan {
+                    job: name.to_owned(),
+                    error: e.to_string(),
+                }
+            })?;
+        Ok(serde_json::to_value(crate::judge::verify::VerifiedReport {
+            report: &plan.report,
+            verify: &verified,
+        })
+        .expect("a verified report serialises"))
+    }
+
+    /// Starts the dry run `request` asks for; gives its id.
+    pub fn start(self: &Arc<Console>, request: &RunRequest) -> Result<u64, StartError> {
+        let machine = self.machine(&request.machine)?;
+        let kind = transport(&request.transport)?;
+        let (low, high) = TIME_SCALES;
+        if !(low..=high).contains(&request.time_scale) {
+            return Err(StartError::TimeScale(request.time_scale));
+        }
+        if let Some(busy) = self.registry.busy(&request.machine) {
+            return Err(busy.into());
+        }
+        let (job, plan) = self.planned(&request.job, machine)?;
+        let posted = Posted::read(request.job.as_str(), &plan.text, machine)
+            .map_err(|e| StartError::Preflight(format!("{}: {e}", request.job)))?;
+        dry_run::preflight(machine, &posted, kind)
+            .map_err(|e| StartError::Preflight(e.to_string()))?;
+        let inputs = Arc::new(RunInputs {
+            job_name: request.job.clone(),
+            job,
+            posted,
+            transport: kind,
+            time_scale: request.time_scale,
+        });
+        self.launch(&request.machine, inputs, None, Vec::new())
+    }
+
+    /// Resumes `machine`'s stopped run where it stopped; gives the new run's id.
+    pub fn resume(self: &Arc<Console>, machine: &str) -> Result<u64, StartError> {
+        self.machine(machine)?;
+        let nothing = || StartError::NothingToResume(machine.to_owned());
+        let (view, cut, inputs) = self.registry.last(machine).ok_or_else(nothing)?;
+        if let Some(busy) = self.registry.busy(machine) {
+            return Err(busy.into());
+        }
+        let point = view.resume.ok_or_else(nothing)?;
+        let inputs = inputs
+            .and_then(|i| i.downcast::<RunInputs>().ok())
+            .ok_or_else(nothing)?;
+        if inputs.transport != TransportKind::Serial {
+            return Err(StartError::ResumeTransport(inputs.transport.name()));
+        }
+        self.launch(machine, inputs, Some(point.line), cut)
+    }
+
+    /// Locks the machine, registers the run and starts its thread.
+    fn launch(
+        self: &Arc<Console>,
+        machine: &str,
+        inputs: Arc<RunInputs>,
+        resume_at: Option<usize>,
+        cut: Vec<Record>,
+    ) -> Result<u64, StartError> {
+        let profile = self.machine(machine)?;
+        let holder = format!("{}, console run of {}", self.holder, inputs.job_name);
+        let lock = MachineLock::acquire(&self.lock_dir, &super::machine_key(profile), &holder)?;
+        let (control, commands) = transport::control();
+        let mut view = RunView::new(
+            machine,
+            &inputs.job_name,
+            inputs.transport.name(),
+            inputs.time_scale,
+        );
+        view.resumed_at = resume_at;
+        view.total = inputs.posted.lines.len();
+        let start = cut.iter().rev().find_map(|r| match &r.event {
+            Event::Executed { to, .. } => Some(*to),
+            _ => None,
+        });
+        let erased: Inputs = inputs.clone();
+        let id = self.registry.begin(view, control, cut, erased)?;
+        let console = Arc::clone(self);
+        let name = machine.to_owned();
+        std::thread::Builder::new()
+            .name(format!("console run {id}"))
+            .spawn(move || {
+                let _lock = lock;
+                let _ends = Ends {
+                    console: Arc::clone(&console),
+                    machine: name.clone(),
+                    id,
+                };
+                console.run(&name, id, &inputs, resume_at, start, commands);
+            })
+            .map_err(|error| {
+                self.registry.end(machine, id, |v| {
+                    v.outcome = Some(format!("not started: {error}"))
+                });
+                StartError::Thread(error)
+            })?;
+        Ok(id)
+    }
+
+    /// The run itself, on its thread: the dry run (or its resume), then its end.
+    fn run(
+        self: &Arc<Console>,
+        machine: &str,
+        id: u64,
+        inputs: &RunInputs,
+        resume_at: Option<usize>,
+        start: Option<[f64; 3]>,
+        commands: Commands,
+    ) {
+        let profile = &self.machines[machine];
+        let log = ExecLog::memory();
+        let reader = Arc::new(Mutex::new(LogReader {
+            console: Arc::clone(self),
+            machine: machine.to_owned(),
+            id,
+            log: log.clone(),
+            read: 0,
+            last: Instant::now(),
+        }));
+        let progress = progress(Arc::clone(&reader), inputs);
+        let runtime = match tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+        {
+            Ok(runtime) => runtime,
+            Err(error) => {
+                self.registry.end(machine, id, |v| {
+                    v.outcome = Some(format!("could not start: {error}"))
+                });
+                return;
+            }
+        };
+        let mut run_log = log.clone();
+        let ended: Result<(bool, Option<String>, Option<f64>), String> = match resume_at {
+            None => runtime
+                .block_on(dry_run::dry_run(
+                    &inputs.job,
+                    profile,
+                    &inputs.posted,
+                    DryRunOptions {
+                        transport: inputs.transport,
+                        time_scale: Some(inputs.time_scale),
+                        baud: BAUD,
+                        progress: Some(progress),
+                        commands: Some(commands),
+                        ..DryRunOptions::default()
+                    },
+                    &mut run_log,
+                ))
+                .map(|r| (r.completed, r.stop, Some(r.link_utilization)))
+                .map_err(|e| e.to_string()),
+            Some(line) => runtime
+                .block_on(resume_serial(
+                    profile,
+                    &inputs.posted,
+                    ResumeOptions {
+                        line: line - 1,
+                        start: start.unwrap_or([0.0; 3]),
+                        time_scale: inputs.time_scale,
+                        baud: BAUD,
+                        progress: Some(progress),
+                    },
+                    commands,
+                    &mut run_log,
+                ))
+                .map(|o| (o.completed(), o.stop(), None))
+                .map_err(|e| e.to_string()),
+        };
+        reader.lock().unwrap_or_else(|p| p.into_inner()).read_log();
+        let cut = self
+            .registry
+            .last(machine)
+            .map(|(_, cut, _)| cut)
+            .unwrap_or_default();
+        let measured = groove::measure(&inputs.job, &cut);
+        self.registry.end(machine, id, |v| {
+            match ended {
+                Ok((completed, stop, link)) => {
+                    v.completed = completed;
+                    v.link_use = link.or(v.link_use);
+                    v.outcome = Some(match stop {
+                        None => "completed".to_owned(),
+                        Some(stop) => format!("stopped: {stop}"),
+                    });
+                }
+                Err(error) => v.outcome = Some(format!("failed: {error}")),
+            }
+            if v.completed {
+                v.resume = None;
+            }
+            match measured {
+                Ok(m) => v.measured = Some(m),
+                Err(error) => v.message(format!("the cut cannot be measured: {error}")),
+            }
+        });
+    }
+}
+
+/// Ends a run whose thread panicked, so that its machine does not stay busy for ever.
+struct Ends {
+    console: Arc<Console>,
+    machine: String,
+    id: u64,
+}
+
+impl Drop for Ends {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            self.console.registry.end(&self.machine, self.id, |v| {
+                v.outcome =
+                    Some("failed: the console's run broke off (see its error output)".into())
+            });
+        }
+    }
+}
+
+/// Reads a run's log into its view as it grows: alarms and messages in words, the resume
+/// point, and the executed moves into what the machine has cut.
+struct LogReader {
+    console: Arc<Console>,
+    machine: String,
+    id: u64,
+    log: ExecLog,
+    /// Records read so far.
+    read: usize,
+    last: Instant,
+}
+
+impl LogReader {
+    fn read_log(&mut self) {
+        self.last = Instant::now();
+        let records = self.log.records();
+        let new = records.get(self.read..).unwrap_or_default();
+        self.read = records.len();
+        let mut executed = Vec::new();
+        let mut words = Vec::new();
+        let mut alarms = Vec::new();
+        let mut resume = None;
+        for record in new {
+            match &record.event {
+                Event::Executed { .. } => executed.push(record.clone()),
+                Event::Alarm { code, message } => alarms.push(format!("ALARM:{code} {message}")),
+                Event::Error {
+                    line,
+                    code,
+                    message,
+                } => words.push(format!("line {line} refused, error {code}: {message}")),
+                Event::Message { text } => words.push(text.clone()),
+                Event::ResumeAt {
+                    line,
+                    possibly_run_to,
+                } => {
+                    resume = Some(ResumePoint {
+                        line: *line,
+                        possibly_run_to: *possibly_run_to,
+                    })
+                }
+                Event::End {
+                    reason: Some(reason),
+                    ..
+                } => words.push(format!("the run ended: {reason}")),
+                _ => {}
+            }
+        }
+        let registry = &self.console.registry;
+        if !executed.is_empty() {
+            registry.cut(&self.machine, self.id, executed);
+        }
+        if !(words.is_empty() && alarms.is_empty() && resume.is_none()) {
+            registry.update(&self.machine, self.id, |v| {
+                v.alarms.extend(alarms);
+                for text in words {
+                    v.message(text);
+                }
+                if resume.is_some() {
+                    v.resume = resume;
+                }
+            });
+        }
+    }
+}
+
+/// The progress callback of a run: its figures into the view at once, the log at most
+/// every [`LOG_READ_EVERY`]; a serial line's use from the bytes of the acknowledged lines
+/// over what the link carries in the simulated time so far.
+fn progress(reader: Arc<Mutex<LogReader>>, inputs: &RunInputs) -> ProgressFn {
+    let serial = inputs.transport == TransportKind::Serial;
+    let scale = inputs.time_scale;
+    // Bytes of the first n lines, each with its newline.
+    let bytes: Vec<usize> = std::iter::once(0)
+        .chain(inputs.posted.lines.iter().scan(0, |sum, line| {
+            *sum += line.len() + 1;
+            Some(*sum)
+        }))
+        .collect();
+    Box::new(move |p: &Progress| {
+        let mut reader = reader.lock().unwrap_or_else(|p| p.into_inner());
+        let simulated = p.elapsed.as_secs_f64() * scale;
+        let link = (serial && simulated > 0.0).then(|| {
+            let sent = bytes[p.done.min(bytes.len() - 1)] as f64;
+            (sent * 10.0 / (f64::from(BAUD) * simulated)).min(1.0)
+        });
+        reader
+            .console
+            .registry
+            .update(&reader.machine, reader.id, |v| {
+                v.unit = p.unit.name().to_owned();
+                v.done = p.done;
+                v.total = p.total;
+                v.line = p.line.map(|l| l + 1);
+                v.elapsed_s = p.elapsed.as_secs_f64();
+                v.left_s = p.left.map(|l| l.as_secs_f64());
+                v.state.clone_from(&p.state);
+                v.position = p.position.or(v.position);
+                v.link_use = link;
+            });
+        if reader.last.elapsed() >= LOG_READ_EVERY {
+            reader.read_log();
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn console(dir: &std::path::Path) -> Arc<Console> {
+        let jobs = dir.join("jobs");
+        std::fs::create_dir_all(jobs.join("t")).unwrap();
+        std::fs::copy(
+            concat!(env!("CARGO_MANIFEST_DIR"), "/examples/trapezoidal/job.toml"),
+            jobs.join("t/job.toml"),
+        )
+        .unwrap();
+        std::fs::write(jobs.join("broken.toml"), "[groove]\nlead = \"x\"\n").unwrap();
+        let sim = MachineProfile::builtin_sim().unwrap();
+        let mut console = Console::new(
+            super::super::machines(vec![sim]).unwrap(),
+            JobDir::open(&jobs).unwrap(),
+            None,
+        );
+        console.lock_dir = dir.join("locks");
+        Arc::new(console)
+    }
+
+    fn request(machine: &str, job: &str) -> RunRequest {
+        RunRequest {
+            machine: machine.into(),
+            job: job.into(),
+            transport: "serial".into(),
+            time_scale: 100.0,
+        }
+    }
+
+    #[test]
+    fn requests_are_refused_before_anything_runs() {
+        let dir = tempfile::tempdir().unwrap();
+        let console = console(dir.path());
+        let sim = console.machines.keys().next().unwrap().clone();
+        let refused = |r: RunRequest| console.start(&r).unwrap_err().to_string();
+        assert!(refused(request("lathe", "t/job.toml")).contains("no machine \"lathe\""));
+        assert!(refused(request(&sim, "../t/job.toml")).contains("steps out of the jobs folder"));
+        assert!(refused(request(&sim, "broken.toml")).contains("broken.toml"));
+        let mut fast = request(&sim, "t/job.toml");
+        fast.time_scale = 1e6;
+        assert!(refused(fast).contains("time scale 1000000 is out of range"));
+        let mut can = request(&sim, "t/job.toml");
+        can.transport = "can".into();
+        assert!(refused(can).contains("the simulator serves serial"));
+        assert!(console
+            .resume(&sim)
+            .unwrap_err()
+            .to_string()
+            .contains("no stopped run to resume"));
+        // Nothing ran.
+        assert!(console.registry.views().is_empty());
+    }
+
+    #[test]
+    fn a_machine_another_process_runs_is_refused_naming_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let console = console(dir.path());
+        let sim = console.machines.keys().next().unwrap().clone();
+        let key = super::super::machine_key(&console.machines[&sim]);
+        let _held =
+            MachineLock::acquire(&dir.path().join("locks"), &key, "process 42 (whirl stream)")
+                .unwrap();
+        let error = console.start(&request(&sim, "t/job.toml")).unwrap_err();
+        assert!(
+            error.to_string().contains("process 42 (whirl stream)"),
+            "{error}"
+        );
+        assert!(console.registry.views().is_empty());
+    }
+
+    #[test]
+    fn plan_and_verify_report_as_the_command_line_does() {
+        let dir = tempfile::tempdir().unwrap();
+        let console = console(dir.path());
+        let sim = console.machines.keys().next().unwrap().clone();
+        let plan = console.plan("t/job.toml", &sim).unwrap();
+        assert_eq!(plan["delta_mm"], 0.01);
+        assert!(plan["segments"].as_u64().unwrap() > 0);
+        assert!(console.plan("../job.toml", &sim).is_err());
+    }
+}
