@@ -64,7 +64,7 @@ pub enum LockError {
 }
 
 impl MachineLock {
-    /// Takes the lock on `what` (a machine or port, in words: see [`crate::console::key`])
+    /// Takes the lock on `what` (a machine or port, in words: see [`crate::console::link_key`])
     /// in `dir`, writing `holder` into the file; refused, naming the holder, if another
     /// open lock holds it (another process, or another run of this one).
     pub fn acquire(dir: &Path, what: &str, holder: &str) -> Result<MachineLock, LockError> {

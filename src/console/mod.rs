@@ -2,7 +2,7 @@
 //!
 //! The top layer: it plans and verifies jobs ([`crate::plan`], [`crate::judge::verify`]),
 //! dry-runs them on the simulator ([`crate::judge::dry_run`]) with the library's control
-//! handle ([`crate::transport::control`]), and shows the groove as it is cut
+//! handle ([`mod@crate::transport::control`]), and shows the groove as it is cut
 //! ([`groove`]). What decides is plain code, testable without a browser or a socket:
 //!
 //! - [`paths`]: the job files it may read, only under `--jobs`;
