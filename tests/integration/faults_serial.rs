@@ -347,7 +347,7 @@ fn a_second_ctrl_c_aborts_with_a_soft_reset() {
 }
 
 #[test]
-fn after_an_external_reset_the_resume_offers_the_unlock_and_re_enters_along_the_groove() {
+fn after_an_external_reset_the_resume_unlocks_an_alarm_and_re_enters_along_the_groove() {
     let bench = Bench::new();
     let child = bench.stream(&[]);
     bench.wait_cutting(2000);
@@ -359,24 +359,33 @@ fn after_an_external_reset_the_resume_offers_the_unlock_and_re_enters_along_the_
     std::io::Write::write_all(&mut port, &[0x18]).unwrap();
     let o = finish(child);
     let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(stderr.contains("ALARM:3"), "{stderr}");
     let line = resume_line(&stderr);
     let resume_at = line.to_string();
-    // The controller is still in alarm: the resume says so and offers the unlock.
-    let o = finish(bench.stream(&[OsStr::new("--resume-at"), OsStr::new(&resume_at)]));
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success());
-    assert!(
-        stderr.contains("in alarm") && stderr.contains("--unlock"),
-        "{stderr}"
-    );
-    // Nothing was sent but the question.
+    let resume = [OsStr::new("--resume-at"), OsStr::new(&resume_at)];
+    // grbl raises ALARM:3 for a reset in motion only. One that finds the machine standing
+    // (on a loaded host the simulator may have run dry waiting for its sender) leaves no
+    // alarm, and the resume needs no unlock; the simulator's log says which it was.
+    let unlock = if bench.sim_events("alarm").is_empty() {
+        assert!(
+            stderr.contains("the stream stopped: the controller reset"),
+            "{stderr}"
+        );
+        &[][..]
+    } else {
+        assert!(stderr.contains("the stream stopped: ALARM:3"), "{stderr}");
+        // The controller is still in alarm: the resume says so and offers the unlock.
+        let o = finish(bench.stream(&resume));
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success());
+        assert!(
+            stderr.contains("in alarm") && stderr.contains("--unlock"),
+            "{stderr}"
+        );
+        &[OsStr::new("--unlock")][..]
+    };
+    // What the resume sends, from here on in the simulator's log.
     let after = read_events(&bench.sim_log).len();
-    let o = finish(bench.stream(&[
-        OsStr::new("--resume-at"),
-        OsStr::new(&resume_at),
-        OsStr::new("--unlock"),
-    ]));
+    let o = finish(bench.stream(&[&resume[..], unlock].concat()));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_resumed_along_the_groove(&bench, after, line);
 }
