@@ -1,5 +1,6 @@
-//! Planner benchmarks: node solves per second, planning whole grooves (one of 100 mm), and
-//! planning from dense profile points (up to a million).
+//! Planner benchmarks: node solves per second, planning whole grooves (one of 100 mm) as
+//! `whirl plan` does and on the budget's estimate alone, and planning from dense profile
+//! points (up to a million).
 //!
 //! Run with `cargo bench --bench planner`; docs/benchmarks.md quotes the figures.
 
@@ -64,10 +65,45 @@ fn example(name: &str) -> Job {
     Job::load(&path).expect("example job")
 }
 
-/// Every example job, planned whole but for the file writes; `ball-screw` is a 100 mm groove
-/// at Δ = 5 µm.
+/// Every example job, planned whole as `whirl plan` plans it but for the file writes: nodes
+/// chosen, measured by the sweep engine on a stretch of the program and chosen again
+/// (`whirl::judge::refine`); `ball-screw` is a 100 mm groove at Δ = 5 µm.
 #[divan::bench(args = ["double-start", "left-external", "trapezoidal", "ball-screw"], sample_count = 10)]
 fn plan_example(bencher: Bencher, name: &str) {
+    let job = example(name);
+    let machine = MachineProfile::builtin_sim().unwrap();
+    bencher.bench(|| {
+        black_box(
+            whirl::judge::refine::plan(&job, &machine)
+                .unwrap()
+                .report
+                .segments,
+        )
+    });
+}
+
+/// `whirl plan` of the jobs that leave the installation angle to the planner, at the angle
+/// they were planned at before it searched the window of angles for one (the lead angle at
+/// the mean radius): the node choice and its measurement without the search.
+#[divan::bench(args = ["double-start", "ball-screw"], sample_count = 10)]
+fn plan_at_given_angle(bencher: Bencher, name: &str) {
+    let mut job = example(name);
+    job.tool.installation_angle_deg = Some(job.ring().installation.to_degrees());
+    let machine = MachineProfile::builtin_sim().unwrap();
+    bencher.bench(|| {
+        black_box(
+            whirl::judge::refine::plan(&job, &machine)
+                .unwrap()
+                .report
+                .segments,
+        )
+    });
+}
+
+/// The same jobs planned without the engine, on the error budget's estimate alone
+/// (`whirl::plan::plan`, the library's engine-free planner): what the measurement costs.
+#[divan::bench(args = ["double-start", "left-external", "trapezoidal", "ball-screw"], sample_count = 10)]
+fn plan_estimated(bencher: Bencher, name: &str) {
     let job = example(name);
     let machine = MachineProfile::builtin_sim().unwrap();
     bencher.bench(|| black_box(whirl::plan::plan(&job, &machine).unwrap().report.segments));
@@ -101,6 +137,11 @@ fn dense_profile(bencher: Bencher, n: usize) {
         let rows = points::read_csv(black_box(&csv)).unwrap();
         let mut job = job.clone();
         job.profile = points::profile(&rows, Section::Transverse, true, job.p(), 2).unwrap();
-        black_box(whirl::plan::plan(&job, &machine).unwrap().report.segments)
+        black_box(
+            whirl::judge::refine::plan(&job, &machine)
+                .unwrap()
+                .report
+                .segments,
+        )
     });
 }

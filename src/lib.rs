@@ -37,6 +37,7 @@
 //! - [`log`]: the executed-path log (JSON lines) and its summary.
 //! - [`transport`]: the async edges that move a protocol's bytes.
 //! - [`judge`]: the swept-volume measurement, the simulator and dry runs.
+//! - [`records`]: every run recorded in a database (SQLite or PostgreSQL).
 //! - [`console`]: `whirl serve`, the operator's web console.
 //! - [`papers`]: the founding papers' geometry reproduced, outside the data flow: it checks
 //!   the measurement engine's methods and backs `whirl sweep`.
@@ -79,4 +80,5 @@ pub mod plan;
 pub mod post;
 pub mod program;
 pub mod protocol;
+pub mod records;
 pub mod transport;

@@ -103,6 +103,15 @@ pub enum Event {
         #[serde(skip_serializing_if = "Option::is_none", default)]
         reason: Option<String>,
     },
+    /// The feed override: asked of the controller, or reported running (every value it
+    /// goes through, so that a run can be audited for the insert cusp it left), or asked
+    /// and not reached.
+    FeedOverride {
+        /// Percent of the programmed feed.
+        percent: u16,
+        /// What happened to it.
+        state: FeedOverrideState,
+    },
     /// Where a run that did not complete resumes (beside its End: just before it on a
     /// serial line, just after it on the fieldbus transports): the first program line
     /// (1-based) not known to have executed, and the last one that may have.
@@ -114,6 +123,19 @@ pub enum Event {
         #[serde(skip_serializing_if = "Option::is_none", default)]
         possibly_run_to: Option<usize>,
     },
+}
+
+/// What a logged feed override is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FeedOverrideState {
+    /// The bridge asked the controller for it (checked against the run's cap).
+    Asked,
+    /// The controller runs at it (grbl's `Ov:`, the Modbus register read back, the
+    /// bridge's own set-point clock on CANopen).
+    Running,
+    /// Asked and not reached: the controller does not report it, or did not take it.
+    NotTaken,
 }
 
 /// An event with its time.
@@ -558,7 +580,10 @@ impl Tally {
                 run.reason.clone_from(reason);
             }
             Event::ResumeAt { line, .. } => run.resume_at = Some(*line),
-            Event::Start { .. } | Event::Status { .. } | Event::Message { .. } => {}
+            Event::Start { .. }
+            | Event::Status { .. }
+            | Event::Message { .. }
+            | Event::FeedOverride { .. } => {}
         }
     }
 

@@ -361,6 +361,19 @@ impl Controller {
         self.now
     }
 
+    /// The feed override now, percent.
+    pub fn feed_override(&self) -> u8 {
+        self.feed_override
+    }
+
+    /// Sets the feed override to `percent` at once, as a front end with an override
+    /// register does (the Modbus bank's `FEED_OVERRIDE`), held within 10–200 % as grbl holds
+    /// its real-time steps; the G-code front end takes 0x90–0x94 instead.
+    pub fn set_feed_override(&mut self, percent: u8) {
+        let percent = percent.clamp(OVERRIDE_MIN, OVERRIDE_MAX);
+        self.set_overrides(percent, self.rapid_override);
+    }
+
     /// Machine position now.
     pub fn position(&self) -> Position {
         Position::from_array(self.motion.position())

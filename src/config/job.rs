@@ -38,7 +38,7 @@ pub struct Job {
 struct JobFile {
     groove: Groove,
     tool: Tool,
-    cut: Cut,
+    cut: CutFile,
 }
 
 /// Right- or left-hand helix.
@@ -131,26 +131,124 @@ pub struct Tool {
     pub nose_radius: f64,
     /// Number of inserts on the ring.
     pub inserts: u32,
-    /// δ, degrees; omitted: the lead angle at the profile's mean radius.
+    /// δ, degrees; omitted: `plan` takes the angle with the largest margin in the window
+    /// of angles at which the ring fits the groove (`crate::plan::angles`).
     pub installation_angle_deg: Option<f64>,
     /// The insert's cutting-edge arc, degrees (default 180: a full-radius nose cuts ±90°).
     pub edge_arc_deg: Option<f64>,
+    /// The largest chip thickness the insert takes, mm (its maker's figure); absent: chips
+    /// are not checked. The fastest feed keeps below it (`crate::plan::feed`).
+    pub max_chip_thickness: Option<f64>,
 }
 
-/// `[cut]`.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// `[cut]`, read and checked.
+#[derive(Debug, Clone)]
 pub struct Cut {
     /// Allowable profile error Δ, mm.
     pub delta: f64,
-    /// Axial feed of the unit per workpiece revolution, mm.
+    /// Axial feed of the unit per workpiece revolution, mm: the job's, or, while
+    /// [`Cut::auto_feed`] is set, where the search for the fastest feed starts (the job's
+    /// number under `whirl plan --fastest`, else [`AUTO_FEED_START`] of the axial pitch).
+    /// The planner resolves an auto job itself (`crate::plan::feed::fastest`); whatever
+    /// measures one measures it at the feed its program was planned at.
     pub axial_feed: f64,
+    /// `axial_feed = "auto"` (or `whirl plan --fastest`): plan at the largest feed that Δ
+    /// and the machine allow, not at `axial_feed`.
+    pub auto_feed: bool,
     /// Workpiece speed, rpm.
     pub workpiece_rpm: f64,
     /// Ring speed, rpm.
     pub ring_rpm: f64,
     /// Feed of the radial plunge and of other G94 moves, mm/min (default 50).
     pub plunge_feed: Option<f64>,
+}
+
+/// Where the search for the fastest feed starts when the job gives none, as a share of the
+/// axial pitch (lead / starts): a feed well inside the range every example plans at.
+pub const AUTO_FEED_START: f64 = 0.01;
+
+/// `[cut]` as written.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CutFile {
+    delta: f64,
+    axial_feed: AxialFeed,
+    workpiece_rpm: f64,
+    ring_rpm: f64,
+    plunge_feed: Option<f64>,
+}
+
+impl CutFile {
+    /// The cut, its feed resolved to a number: the job's, or for `"auto"` where the search
+    /// starts, [`AUTO_FEED_START`] of `groove`'s axial pitch.
+    fn resolve(self, groove: &Groove) -> Cut {
+        let (axial_feed, auto_feed) = match self.axial_feed {
+            AxialFeed::Mm(feed) => (feed, false),
+            AxialFeed::Auto => (
+                AUTO_FEED_START * groove.lead / f64::from(groove.starts),
+                true,
+            ),
+        };
+        Cut {
+            delta: self.delta,
+            axial_feed,
+            auto_feed,
+            workpiece_rpm: self.workpiece_rpm,
+            ring_rpm: self.ring_rpm,
+            plunge_feed: self.plunge_feed,
+        }
+    }
+}
+
+/// `cut.axial_feed`: mm per workpiece revolution, or `"auto"`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum AxialFeed {
+    /// A feed, mm per workpiece revolution: finite, above zero.
+    Mm(f64),
+    /// The fastest feed Δ and the machine allow.
+    Auto,
+}
+
+impl<'de> Deserialize<'de> for AxialFeed {
+    /// A positive number or the string `"auto"`; anything else is refused where it stands in
+    /// the file (toml adds the line and column).
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = AxialFeed;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a feed in mm per workpiece revolution, or \"auto\"")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<AxialFeed, E> {
+                if v.is_finite() && v > 0.0 {
+                    Ok(AxialFeed::Mm(v))
+                } else {
+                    Err(E::custom(format!(
+                        "cut.axial_feed = {}: a feed must be a positive number of mm per \
+                         workpiece revolution (or \"auto\" for the fastest feed)",
+                        show_number(v)
+                    )))
+                }
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<AxialFeed, E> {
+                self.visit_f64(v as f64)
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<AxialFeed, E> {
+                self.visit_f64(v as f64)
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<AxialFeed, E> {
+                if v == "auto" {
+                    Ok(AxialFeed::Auto)
+                } else {
+                    Err(E::custom(format!(
+                        "cut.axial_feed = {v:?}: give a feed in mm per workpiece revolution \
+                         (0.1) or \"auto\" for the fastest feed Δ and the machine allow"
+                    )))
+                }
+            }
+        }
+        deserializer.deserialize_any(Visitor)
+    }
 }
 
 /// Why a job could not be read or resolved.
@@ -236,6 +334,7 @@ impl Job {
             });
         }
         let JobFile { groove, tool, cut } = file;
+        let cut = cut.resolve(&groove);
         Ok(Job {
             groove,
             tool,
@@ -254,8 +353,10 @@ impl Job {
         self.groove.period()
     }
 
-    /// The ring, with the installation angle resolved: given, or the lead angle at the
-    /// profile's mean radius, atan(|p| / ρ_mean).
+    /// The ring, with the installation angle given, or else the lead angle at the profile's
+    /// mean radius, atan(|p| / ρ_mean), the ring's nominal tilt. Choosing an angle needs the
+    /// planner's checks: a job that gives none is planned, and measured, with the angle of
+    /// largest margin in its window (`crate::plan::angles::ring`).
     pub fn ring(&self) -> Ring {
         let installation = match self.tool.installation_angle_deg {
             Some(d) => d.to_radians(),
@@ -386,24 +487,24 @@ impl JobFile {
                 });
             }
         }
+        if let Some(h) = self.tool.max_chip_thickness {
+            positive("tool.max_chip_thickness", h)?;
+        }
         positive("cut.delta", self.cut.delta)?;
-        positive("cut.axial_feed", self.cut.axial_feed)?;
         positive("cut.workpiece_rpm", self.cut.workpiece_rpm)?;
         positive("cut.ring_rpm", self.cut.ring_rpm)?;
         if let Some(f) = self.cut.plunge_feed {
             positive("cut.plunge_feed", f)?;
         }
-        if self.cut.axial_feed >= self.groove.lead / f64::from(self.groove.starts) {
-            return Err(JobError::Invalid {
+        let pitch = self.groove.lead / f64::from(self.groove.starts);
+        match self.cut.axial_feed {
+            AxialFeed::Mm(feed) if feed >= pitch => Err(JobError::Invalid {
                 key: "cut.axial_feed",
-                value: self.cut.axial_feed.to_string(),
-                why: format!(
-                    "must be well below the axial pitch lead / starts = {} mm",
-                    self.groove.lead / f64::from(self.groove.starts)
-                ),
-            });
+                value: feed.to_string(),
+                why: format!("must be well below the axial pitch lead / starts = {pitch} mm"),
+            }),
+            _ => Ok(()),
         }
-        Ok(())
     }
 
     /// The groove's transverse profile, from points (their file relative to `dir`) or a

@@ -21,6 +21,12 @@ use thiserror::Error;
 use crate::config::connection::Connection;
 use std::fmt;
 
+mod block_rate;
+pub use block_rate::{
+    BlockRate, Family, GRBLHAL_SEGMENTS_AHEAD, GRBLHAL_TICKS_PER_SECOND,
+    LINUXCNC_MIN_SEGMENT_CYCLES, LINUXCNC_TRAJ_PERIOD_S, PLC_SCAN_S,
+};
+
 /// A machine axis of the whirling lathe.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Axis {
@@ -209,6 +215,11 @@ pub struct MachineProfile {
     /// error budget Δ. Absent: exact path (`G61`). Must be absent for grblHAL.
     #[serde(default)]
     pub blend_tolerance_mm: Option<f64>,
+    /// Linked moves a second the controller sustains at their programmed durations; absent:
+    /// its family's default ([`MachineProfile::block_rate`]). The fastest feed keeps every
+    /// linked move at least its inverse long.
+    #[serde(default)]
+    pub max_block_rate: Option<f64>,
     /// The ring spindle's speed range; absent: speeds are not checked.
     #[serde(default)]
     pub spindle: Option<Spindle>,
@@ -372,6 +383,7 @@ impl MachineProfile {
             connection.validate().map_err(|e| (e.key, e.problem))?;
             self.check_connection(connection)?;
         }
+        block_rate::check(self)?;
         Ok(())
     }
 

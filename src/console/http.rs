@@ -8,6 +8,7 @@
 use super::registry::RunView;
 use super::runner::{Console, RunRequest, StartError};
 use super::token;
+use crate::records::NoteKind;
 use crate::transport::Command;
 use axum::extract::{Path, Query, State};
 use axum::http::{header, HeaderMap, StatusCode};
@@ -50,6 +51,8 @@ pub fn router(console: Arc<Console>) -> Router {
         .route("/api/runs", get(runs).post(start))
         .route("/api/runs/{machine}/{button}", post(press))
         .route("/api/runs/{machine}/groove.svg", get(groove))
+        .route("/api/history", get(super::history::list))
+        .route("/api/history/{id}", get(super::history::show))
         .route("/api/events", get(events))
         .layer(axum::middleware::from_fn_with_state(
             Arc::clone(&console),
@@ -76,7 +79,7 @@ async fn guard(
 }
 
 /// An error as the API answers it: a status and `{"error": "…"}`.
-struct ApiError(StatusCode, String);
+pub(super) struct ApiError(pub(super) StatusCode, pub(super) String);
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
@@ -91,6 +94,7 @@ impl From<StartError> for ApiError {
             StartError::Path(_) => StatusCode::BAD_REQUEST,
             StartError::Run(_) | StartError::Lock(_) => StatusCode::CONFLICT,
             StartError::Thread(_) => StatusCode::INTERNAL_SERVER_ERROR,
+            StartError::Record(_) => StatusCode::SERVICE_UNAVAILABLE,
             _ => StatusCode::UNPROCESSABLE_ENTITY,
         };
         ApiError(status, error.to_string())
@@ -238,6 +242,25 @@ async fn press(
         .registry
         .press(&machine, command)
         .map_err(|e| ApiError(StatusCode::CONFLICT, e.to_string()))?;
+    let noted = match command {
+        Command::Hold => Some(NoteKind::Hold),
+        Command::Resume => Some(NoteKind::Resume),
+        _ => None,
+    };
+    if let Some(kind) = noted {
+        if let Err(error) = console.note_pressed(&machine, kind).await {
+            if let Some(view) = console
+                .registry
+                .views()
+                .into_iter()
+                .find(|v| v.machine == machine)
+            {
+                console.registry.update(&machine, view.id, |v| {
+                    v.message(format!("the {kind} is not in the run's record: {error}"))
+                });
+            }
+        }
+    }
     Ok(Json(serde_json::json!({ "pressed": button })))
 }
 

@@ -11,15 +11,20 @@
 //!   lock);
 //! - [`registry`]: the runs, one slot per machine, which live in the server, not the page;
 //! - [`runner`]: a run from request to end, on a thread of its own;
-//! - [`resume`]: a stopped dry run resumed where it stopped, re-entering along the groove.
+//! - [`resume`]: a stopped dry run resumed where it stopped, re-entering along the groove,
+//!   over the transport it ran on;
+//! - [`record`]: the runs in the run records ([`crate::records`]);
+//! - [`history`]: the records searched for the history page.
 //!
 //! [`http`] is the edge: axum routes, the page (embedded, no build step, nothing fetched
 //! from the internet) and the server-sent events that push every change to it.
 
 pub mod groove;
+pub mod history;
 pub mod http;
 pub mod lock;
 pub mod paths;
+pub mod record;
 pub mod registry;
 pub mod resume;
 pub mod runner;

@@ -83,6 +83,8 @@ pub struct RunView {
     pub measured: Option<Measured>,
     /// Executed moves logged so far (the groove picture changes when this does).
     pub executed: usize,
+    /// The run's number in the run records, if it is recorded.
+    pub record: Option<i64>,
 }
 
 /// The measured error of what a run (and the runs it resumed) cut.
@@ -128,6 +130,7 @@ impl RunView {
             resume: None,
             measured: None,
             executed: 0,
+            record: None,
         }
     }
 

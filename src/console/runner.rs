@@ -1,6 +1,8 @@
 //! A console run from request to end: every refusal settled before anything starts
-//! (machine, path, job, plan, the machine's limits, the lock), then the dry run on a thread
-//! of its own, its progress and log read into the [`Registry`] as it goes.
+//! (machine, path, job, plan, the machine's limits, the lock, the run's record), then the
+//! dry run (or the stream to the machine, or a resume of either) on a thread of its own, its
+//! progress and log read into the [`Registry`] as it goes, and its record closed with how
+//! it ended.
 //!
 //! A run gets its own thread and single-threaded runtime: the simulator runs as fast as its
 //! time scale lets it and must not slow the server, and the run must outlive any page.
@@ -8,14 +10,18 @@
 use super::groove;
 use super::lock::{self, LockError, MachineLock};
 use super::paths::{JobDir, PathError};
+use super::record::{self, Records};
 use super::registry::{Inputs, Registry, ResumePoint, RunError, RunView};
-use super::resume::{resume_serial, ResumeOptions};
+use super::resume::{self, ResumeError, ResumeOptions};
 use super::token::Token;
 use crate::config::job::Job;
 use crate::config::machine::MachineProfile;
 use crate::judge::dry_run::{self, DryRunOptions};
 use crate::log::{Event, ExecLog, Record};
-use crate::transport::{self, Commands, Posted, Progress, ProgressFn, TransportKind};
+use crate::records::{Ending, FileSnapshot, NoteKind, Outcome, RunId, Store};
+use crate::transport::{
+    self, Commands, Link, Posted, Progress, ProgressFn, RunOptions, TransportKind,
+};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -41,6 +47,10 @@ pub struct Console {
     pub token: Option<Token>,
     /// The runs.
     pub registry: Registry,
+    /// Where the runs are recorded; `None`: unrecorded (`--allow-unrecorded`).
+    pub records: Option<Records>,
+    /// The machine profiles' files as read, by machine name, for the records.
+    pub machine_files: BTreeMap<String, FileSnapshot>,
     /// Where the machine locks are.
     lock_dir: PathBuf,
     /// This process, as a lock names it.
@@ -54,10 +64,19 @@ pub struct RunRequest {
     pub machine: String,
     /// The job, relative to the jobs folder.
     pub job: String,
-    /// `serial`, `modbus-tcp`, `modbus-rtu` or `can-slcan`.
+    /// A dry run's transport: `serial`, `modbus-tcp`, `modbus-rtu` or `can-slcan`.
+    #[serde(default)]
     pub transport: String,
-    /// Simulated seconds per wall second.
+    /// A dry run's simulated seconds per wall second.
+    #[serde(default = "real_time")]
     pub time_scale: f64,
+    /// Stream to the machine over its profile's `[connection]` instead of dry-running.
+    #[serde(default)]
+    pub stream: bool,
+}
+
+fn real_time() -> f64 {
+    1.0
 }
 
 /// Why a run, a plan or a verification was refused.
@@ -95,12 +114,17 @@ pub enum StartError {
     /// Nothing to resume.
     #[error("machine \"{0}\" has no stopped run to resume")]
     NothingToResume(String),
-    /// A resume over a fieldbus transport.
-    #[error(
-        "the console resumes serial dry runs; this {0} run is resumed with \
-         whirl stream --resume-at"
-    )]
-    ResumeTransport(&'static str),
+    /// The machine's profile says no connection the console can stream over.
+    #[error("cannot stream to machine \"{machine}\": {error}")]
+    Link {
+        /// The machine.
+        machine: String,
+        /// Why.
+        error: String,
+    },
+    /// The run's record could not be opened: the run is not started.
+    #[error("the run is not started, since it could not be recorded (nothing was sent): {0}")]
+    Record(String),
     /// The run's thread could not be started.
     #[error("cannot start the run: {0}")]
     Thread(std::io::Error),
@@ -110,9 +134,15 @@ pub enum StartError {
 struct RunInputs {
     job_name: String,
     job: Job,
+    /// The job file as read, for the records.
+    job_file: Option<FileSnapshot>,
+    /// The plan report (JSON), for the records.
+    plan_report: Option<String>,
     posted: Posted,
     transport: TransportKind,
     time_scale: f64,
+    /// The machine's own connection, for a stream; `None`: a dry run on the simulator.
+    link: Option<Link>,
 }
 
 /// The transports a console dry run takes, by their names.
@@ -146,6 +176,8 @@ impl Console {
             jobs,
             token,
             registry: Registry::default(),
+            records: None,
+            machine_files: BTreeMap::new(),
             lock_dir: lock::lock_dir(),
             holder: lock::this_process(),
         }
@@ -165,7 +197,16 @@ impl Console {
     ) -> Result<(Job, crate::plan::Plan), StartError> {
         let path = self.jobs.resolve(name)?;
         let job = Job::load(&path).map_err(|e| StartError::Job(e.to_string()))?;
-        let plan = crate::plan::plan(&job, machine).map_err(|e| StartError::Plan {
+        self.planned_job(name, job, machine)
+    }
+
+    fn planned_job(
+        &self,
+        name: &str,
+        job: Job,
+        machine: &MachineProfile,
+    ) -> Result<(Job, crate::plan::Plan), StartError> {
+        let plan = crate::judge::refine::plan(&job, machine).map_err(|e| StartError::Plan {
             job: name.to_owned(),
             error: e.to_string(),
         })?;
@@ -197,28 +238,66 @@ impl Console {
         .expect("a verified report serialises"))
     }
 
-    /// Starts the dry run `request` asks for; gives its id.
+    /// Starts the dry run (or the stream to the machine) `request` asks for; gives its id.
     pub fn start(self: &Arc<Console>, request: &RunRequest) -> Result<u64, StartError> {
         let machine = self.machine(&request.machine)?;
-        let kind = transport(&request.transport)?;
+        let link = if request.stream {
+            let link = Link::resolve(machine, None, None, None).map_err(|e| StartError::Link {
+                machine: request.machine.clone(),
+                error: e.to_string(),
+            })?;
+            if matches!(link, Link::Linuxcnc(_)) {
+                return Err(StartError::Link {
+                    machine: request.machine.clone(),
+                    error: "the console streams over serial, Modbus and CAN; LinuxCNC is run \
+                            with whirl stream"
+                        .into(),
+                });
+            }
+            Some(link)
+        } else {
+            None
+        };
+        let kind = match &link {
+            Some(link) => link.kind(),
+            None => transport(&request.transport)?,
+        };
         let (low, high) = TIME_SCALES;
-        if !(low..=high).contains(&request.time_scale) {
+        if link.is_none() && !(low..=high).contains(&request.time_scale) {
             return Err(StartError::TimeScale(request.time_scale));
         }
         if let Some(busy) = self.registry.busy(&request.machine) {
             return Err(busy.into());
         }
-        let (job, plan) = self.planned(&request.job, machine)?;
+        let path = self.jobs.resolve(&request.job)?;
+        let bytes = std::fs::read(&path)
+            .map_err(|e| StartError::Job(format!("cannot read the job {}: {e}", request.job)))?;
+        let job = Job::load(&path).map_err(|e| StartError::Job(e.to_string()))?;
+        let (job, plan) = self.planned_job(&request.job, job, machine)?;
         let posted = Posted::read(request.job.as_str(), &plan.text, machine)
             .map_err(|e| StartError::Preflight(format!("{}: {e}", request.job)))?;
-        dry_run::preflight(machine, &posted, kind)
-            .map_err(|e| StartError::Preflight(e.to_string()))?;
+        match &link {
+            Some(_) => posted
+                .check(machine)
+                .map_err(|e| StartError::Preflight(e.to_string()))?,
+            None => {
+                dry_run::preflight(machine, &posted, kind)
+                    .map_err(|e| StartError::Preflight(e.to_string()))?;
+            }
+        }
         let inputs = Arc::new(RunInputs {
             job_name: request.job.clone(),
             job,
+            job_file: Some(FileSnapshot::of(path.display().to_string(), &bytes)),
+            plan_report: serde_json::to_string(&plan.report).ok(),
             posted,
             transport: kind,
-            time_scale: request.time_scale,
+            time_scale: if link.is_some() {
+                1.0
+            } else {
+                request.time_scale
+            },
+            link,
         });
         self.launch(&request.machine, inputs, None, Vec::new())
     }
@@ -235,9 +314,6 @@ impl Console {
         let inputs = inputs
             .and_then(|i| i.downcast::<RunInputs>().ok())
             .ok_or_else(nothing)?;
-        if inputs.transport != TransportKind::Serial {
-            return Err(StartError::ResumeTransport(inputs.transport.name()));
-        }
         self.launch(machine, inputs, Some(point.line), cut)
     }
 
@@ -253,20 +329,55 @@ impl Console {
         let holder = format!("{}, console run of {}", self.holder, inputs.job_name);
         let lock = MachineLock::acquire(&self.lock_dir, &super::machine_key(profile), &holder)?;
         let (control, commands) = transport::control();
-        let mut view = RunView::new(
-            machine,
-            &inputs.job_name,
-            inputs.transport.name(),
-            inputs.time_scale,
-        );
+        let transport = match &inputs.link {
+            Some(link) => format!("{} to the machine ({link})", inputs.transport.name()),
+            None => inputs.transport.name().to_owned(),
+        };
+        let mut view = RunView::new(machine, &inputs.job_name, &transport, inputs.time_scale);
         view.resumed_at = resume_at;
         view.total = inputs.posted.lines.len();
         let start = cut.iter().rev().find_map(|r| match &r.event {
             Event::Executed { to, .. } => Some(*to),
             _ => None,
         });
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .map_err(StartError::Thread)?;
+        // The record, opened before anything is sent; the database's connections live on
+        // the run's own runtime.
+        let recorded = match &self.records {
+            Some(records) => {
+                let run = record::new_run(record::Start {
+                    job: inputs.job_file.clone(),
+                    machine: self.machine_files.get(machine).cloned(),
+                    machine_name: machine,
+                    posted: &inputs.posted,
+                    plan_report: inputs.plan_report.clone(),
+                    transport: inputs.transport.name(),
+                    port: inputs.link.as_ref().map(Link::to_string),
+                    resume_from: resume_at,
+                });
+                let (store, id) = runtime
+                    .block_on(record::begin(&records.place, &run))
+                    .map_err(|e| StartError::Record(e.to_string()))?;
+                Some((store, id))
+            }
+            None => None,
+        };
+        view.record = recorded.as_ref().map(|(_, id)| *id);
         let erased: Inputs = inputs.clone();
-        let id = self.registry.begin(view, control, cut, erased)?;
+        let id = match self.registry.begin(view, control, cut, erased) {
+            Ok(id) => id,
+            Err(busy) => {
+                if let Some((store, record)) = &recorded {
+                    let mut ending = Ending::new(Outcome::Failed);
+                    ending.reason = Some(format!("not started: {busy}"));
+                    let _ = runtime.block_on(store.finish(*record, &ending));
+                }
+                return Err(busy.into());
+            }
+        };
         let console = Arc::clone(self);
         let name = machine.to_owned();
         std::thread::Builder::new()
@@ -278,7 +389,14 @@ impl Console {
                     machine: name.clone(),
                     id,
                 };
-                console.run(&name, id, &inputs, resume_at, start, commands);
+                let run = Run {
+                    machine: &name,
+                    id,
+                    inputs: &inputs,
+                    resume_at,
+                    start,
+                };
+                console.run(run, &runtime, recorded, commands);
             })
             .map_err(|error| {
                 self.registry.end(machine, id, |v| {
@@ -289,16 +407,22 @@ impl Console {
         Ok(id)
     }
 
-    /// The run itself, on its thread: the dry run (or its resume), then its end.
+    /// The run itself, on its thread: the dry run, the stream or a resume of either, then
+    /// its record closed and its end shown.
     fn run(
         self: &Arc<Console>,
-        machine: &str,
-        id: u64,
-        inputs: &RunInputs,
-        resume_at: Option<usize>,
-        start: Option<[f64; 3]>,
+        run: Run<'_>,
+        runtime: &tokio::runtime::Runtime,
+        recorded: Option<(Store, RunId)>,
         commands: Commands,
     ) {
+        let Run {
+            machine,
+            id,
+            inputs,
+            resume_at,
+            start,
+        } = run;
         let profile = &self.machines[machine];
         let log = ExecLog::memory();
         let reader = Arc::new(Mutex::new(LogReader {
@@ -310,41 +434,30 @@ impl Console {
             last: Instant::now(),
         }));
         let progress = progress(Arc::clone(&reader), inputs);
-        let runtime = match tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()
-        {
-            Ok(runtime) => runtime,
-            Err(error) => {
-                self.registry.end(machine, id, |v| {
-                    v.outcome = Some(format!("could not start: {error}"))
-                });
-                return;
-            }
-        };
         let mut run_log = log.clone();
-        let ended: Result<(bool, Option<String>, Option<f64>), String> = match resume_at {
-            None => runtime
-                .block_on(dry_run::dry_run(
-                    &inputs.job,
+        let (mut ending, link_use) = match (&inputs.link, resume_at) {
+            (None, None) => match runtime.block_on(dry_run::dry_run(
+                &inputs.job,
+                profile,
+                &inputs.posted,
+                DryRunOptions {
+                    transport: inputs.transport,
+                    time_scale: Some(inputs.time_scale),
+                    baud: BAUD,
+                    progress: Some(progress),
+                    commands: Some(commands),
+                    ..DryRunOptions::default()
+                },
+                &mut run_log,
+            )) {
+                Ok(report) => (Ending::of_dry_run(&report), Some(report.link_utilization)),
+                Err(error) => (failed(error), None),
+            },
+            (None, Some(line)) => {
+                let resumed = runtime.block_on(resume::resume(
                     profile,
                     &inputs.posted,
-                    DryRunOptions {
-                        transport: inputs.transport,
-                        time_scale: Some(inputs.time_scale),
-                        baud: BAUD,
-                        progress: Some(progress),
-                        commands: Some(commands),
-                        ..DryRunOptions::default()
-                    },
-                    &mut run_log,
-                ))
-                .map(|r| (r.completed, r.stop, Some(r.link_utilization)))
-                .map_err(|e| e.to_string()),
-            Some(line) => runtime
-                .block_on(resume_serial(
-                    profile,
-                    &inputs.posted,
+                    inputs.transport,
                     ResumeOptions {
                         line: line - 1,
                         start: start.unwrap_or([0.0; 3]),
@@ -354,38 +467,142 @@ impl Console {
                     },
                     commands,
                     &mut run_log,
-                ))
-                .map(|o| (o.completed(), o.stop(), None))
-                .map_err(|e| e.to_string()),
+                ));
+                let ending = match resumed {
+                    Ok(outcome) => Ending::of_stream(&Ok(outcome)),
+                    Err(ResumeError::Stream(error)) => Ending::of_stream(&Err(error)),
+                    Err(error) => failed(error),
+                };
+                (ending, None)
+            }
+            (Some(link), resume_at) => {
+                let options = RunOptions {
+                    stall_timeout: Some(STALL_TIMEOUT),
+                    resume_at: resume_at.map(|line| line - 1),
+                    unlock: false,
+                    progress: Some(progress),
+                };
+                let streamed = runtime.block_on(transport::stream(
+                    link,
+                    &inputs.posted,
+                    profile,
+                    options,
+                    commands,
+                    &mut run_log,
+                ));
+                (Ending::of_stream(&streamed), None)
+            }
         };
         reader.lock().unwrap_or_else(|p| p.into_inner()).read_log();
-        let cut = self
+        let (view, cut) = self
             .registry
             .last(machine)
-            .map(|(_, cut, _)| cut)
+            .map(|(view, cut, _)| (Some(view), cut))
             .unwrap_or_default();
-        let measured = groove::measure(&inputs.job, &cut);
+        // A dry run's cut is measured; a machine's is not known to the bridge.
+        let measured = inputs
+            .link
+            .is_none()
+            .then(|| groove::measure(&inputs.job, &cut));
+        let resume = view.as_ref().and_then(|v| v.resume.clone());
+        record::complete(
+            &mut ending,
+            &log.records(),
+            resume.as_ref(),
+            measured.as_ref().and_then(|m| m.as_ref().ok().copied()),
+        );
+        // Closed before the page hears the run ended, so that its history shows it so.
+        let unclosed = recorded.and_then(|(store, record)| {
+            let closed = runtime.block_on(store.finish(record, &ending));
+            runtime.block_on(store.close_connections());
+            closed.err().map(|e| {
+                format!("the run's record {record} could not be closed ({e}); the next whirl serve closes it as interrupted")
+            })
+        });
+        let completed = ending.outcome == Outcome::Completed;
+        // judge::dry_run reports no resume point of a Modbus or CAN dry run (its transports
+        // know one, its report drops it): such a stop cannot be resumed here, and says so.
+        let unresumable = (!completed
+            && resume.is_none()
+            && inputs.link.is_none()
+            && resume_at.is_none()
+            && inputs.transport != TransportKind::Serial)
+            .then(|| {
+                format!(
+                    "no resume point: a {} dry run does not say where it stopped; run it again",
+                    inputs.transport.name()
+                )
+            });
         self.registry.end(machine, id, |v| {
-            match ended {
-                Ok((completed, stop, link)) => {
-                    v.completed = completed;
-                    v.link_use = link.or(v.link_use);
-                    v.outcome = Some(match stop {
-                        None => "completed".to_owned(),
-                        Some(stop) => format!("stopped: {stop}"),
-                    });
-                }
-                Err(error) => v.outcome = Some(format!("failed: {error}")),
-            }
-            if v.completed {
+            v.completed = completed;
+            v.link_use = link_use.or(v.link_use);
+            v.outcome = Some(match (&ending.outcome, &ending.reason) {
+                (Outcome::Completed, _) => "completed".to_owned(),
+                (outcome, Some(reason)) => format!("{outcome}: {reason}"),
+                (outcome, None) => outcome.to_string(),
+            });
+            if completed {
                 v.resume = None;
             }
             match measured {
-                Ok(m) => v.measured = Some(m),
-                Err(error) => v.message(format!("the cut cannot be measured: {error}")),
+                Some(Ok(m)) => v.measured = Some(m),
+                Some(Err(error)) => v.message(format!("the cut cannot be measured: {error}")),
+                None => {}
+            }
+            if let Some(text) = unclosed {
+                v.message(text);
+            }
+            if let Some(text) = unresumable {
+                v.message(text);
             }
         });
     }
+
+    /// Notes a hold or a resume pressed on `machine`'s run in its record; the error, if the
+    /// records could not take it (the run goes on: a machine never stops for an index).
+    pub async fn note_pressed(&self, machine: &str, kind: NoteKind) -> Result<(), String> {
+        let Some(records) = &self.records else {
+            return Ok(());
+        };
+        let Some(view) = self
+            .registry
+            .views()
+            .into_iter()
+            .find(|v| v.machine == machine)
+        else {
+            return Ok(());
+        };
+        let Some(id) = view.record else {
+            return Ok(());
+        };
+        records
+            .store
+            .note(id, &record::pressed(kind, view.line))
+            .await
+            .map_err(|e| e.to_string())
+    }
+}
+
+/// How long a stream waits for the controller to say something new before it holds and
+/// stops, as `whirl dry-run`'s default.
+const STALL_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// A run's ending when it could not be carried out.
+fn failed(error: impl std::fmt::Display) -> Ending {
+    let mut ending = Ending::new(Outcome::Failed);
+    ending.reason = Some(error.to_string());
+    ending
+}
+
+/// Which run a run thread carries out.
+struct Run<'a> {
+    machine: &'a str,
+    id: u64,
+    inputs: &'a RunInputs,
+    /// The line (1-based) it resumes at.
+    resume_at: Option<usize>,
+    /// Where the stopped run it resumes left the machine.
+    start: Option<[f64; 3]>,
 }
 
 /// Ends a run whose thread panicked, so that its machine does not stay busy for ever.
@@ -541,6 +758,7 @@ mod tests {
             job: job.into(),
             transport: "serial".into(),
             time_scale: 100.0,
+            stream: false,
         }
     }
 
@@ -550,6 +768,9 @@ mod tests {
         let console = console(dir.path());
         let sim = console.machines.keys().next().unwrap().clone();
         let refused = |r: RunRequest| console.start(&r).unwrap_err().to_string();
+        let mut stream = request(&sim, "t/job.toml");
+        stream.stream = true;
+        assert!(refused(stream).contains("cannot stream to machine"));
         assert!(refused(request("lathe", "t/job.toml")).contains("no machine \"lathe\""));
         assert!(refused(request(&sim, "../t/job.toml")).contains("steps out of the jobs folder"));
         assert!(refused(request(&sim, "broken.toml")).contains("broken.toml"));

@@ -229,11 +229,11 @@ impl Motion {
         self.turning.last().map(|m| m.to[1])
     }
 
-    /// C range of the turning motion, (low, high).
-    fn c_range(&self) -> (f64, f64) {
-        let a = self.turning[0].from[2];
-        let b = self.turning[self.turning.len() - 1].to[2];
-        (a.min(b), a.max(b))
+    /// C range of the turning motion, (low, high); `None` before C has turned.
+    fn c_range(&self) -> Option<(f64, f64)> {
+        let a = self.turning.first()?.from[2];
+        let b = self.turning.last()?.to[2];
+        Some((a.min(b), a.max(b)))
     }
 
     /// The pose (X, Z, C) where the turning motion passes C = `c` (clamped to its range).
@@ -447,28 +447,35 @@ impl Target {
             c: 0.0,
             z: 0.0,
         });
-        let (c_lo, c_hi) = motion.c_range();
-        let window = SEARCH_WINDOW_DEG.to_radians();
-        // Where the motion passes each seed, in its revolution and the ones either side;
-        // windows that overlap are searched once.
-        let mut centres: Vec<f64> = Vec::with_capacity(seeds.len() * 3);
-        for seed in seeds {
-            let seed_c = seed.c - probe.turn;
-            let c_near = motion.c_at_z(seed.z + probe.z);
-            let k0 = ((c_near - seed_c) / TAU).round();
-            for dk in [-1.0, 0.0, 1.0] {
-                centres.push(seed_c + TAU * (k0 + dk));
-            }
-        }
-        centres.sort_by(f64::total_cmp);
-        centres.dedup_by(|b, a| *b - *a < window / 2.0);
         let mut best = f64::INFINITY;
-        for c_mid in centres {
-            let (a, b) = ((c_mid - window).max(c_lo), (c_mid + window).min(c_hi));
-            if a < b {
-                let v =
-                    scan_then_golden(|c| gap(&mut torus, probe.q, motion.at_c(c)), a, b, 24, 48);
-                best = best.min(v);
+        // Positioning moves alone (C has not turned) cut only where they pass.
+        if let Some((c_lo, c_hi)) = motion.c_range() {
+            let window = SEARCH_WINDOW_DEG.to_radians();
+            // Where the motion passes each seed, in its revolution and the ones either side;
+            // windows that overlap are searched once.
+            let mut centres: Vec<f64> = Vec::with_capacity(seeds.len() * 3);
+            for seed in seeds {
+                let seed_c = seed.c - probe.turn;
+                let c_near = motion.c_at_z(seed.z + probe.z);
+                let k0 = ((c_near - seed_c) / TAU).round();
+                for dk in [-1.0, 0.0, 1.0] {
+                    centres.push(seed_c + TAU * (k0 + dk));
+                }
+            }
+            centres.sort_by(f64::total_cmp);
+            centres.dedup_by(|b, a| *b - *a < window / 2.0);
+            for c_mid in centres {
+                let (a, b) = ((c_mid - window).max(c_lo), (c_mid + window).min(c_hi));
+                if a < b {
+                    let v = scan_then_golden(
+                        |c| gap(&mut torus, probe.q, motion.at_c(c)),
+                        a,
+                        b,
+                        24,
+                        48,
+                    );
+                    best = best.min(v);
+                }
             }
         }
         let reach = self.linkage.ring.radius * self.linkage.ring.installation.sin()
@@ -574,4 +581,28 @@ fn summarise(all: &[PointError]) -> Result<Measurement, VerifyError> {
         worst_undercut: u,
         points: all.len(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::job::Job;
+
+    /// Positioning moves alone (C standing) cut only where they pass: a point of the groove
+    /// they never come near is not reached (infinitely far from the cut), and asking is no
+    /// fault even though no turning motion gives a C range to search.
+    #[test]
+    fn a_motion_that_never_turns_c_reaches_no_point_it_does_not_pass() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/trapezoidal/job.toml");
+        let job = Job::load(std::path::Path::new(path)).unwrap();
+        let target = crate::judge::verify::target(&job).unwrap();
+        let (z_lo, z_hi) = target.z_range;
+        // A positioning move along X, a metre beyond the groove's end.
+        let z = z_hi + 1000.0;
+        let mut motion = Motion::empty();
+        motion.push([0.0, z, 0.0], [50.0, z, 0.0], 1).unwrap();
+        assert!(!motion.is_turning());
+        let error = target.error_at_u(&motion, 0.5, 0, (z_lo + z_hi) / 2.0);
+        assert_eq!(error, f64::INFINITY);
+    }
 }

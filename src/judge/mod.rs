@@ -6,16 +6,26 @@
 //!   [`guard`] its Δ guard, [`cycles`] the drives' cycles merged into moves.
 //! - [`dry_run`]: a planned job run on the simulator through the same transports a
 //!   machine gets, its error measured by the guard.
+//! - [`fastest`]: the fastest feed whose planned program the engine measures within Δ.
 //! - [`plots`]: a run's axes over time and the section it cut, from its log; [`svg`]
 //!   draws them.
+//! - [`refine`]: `whirl plan`'s nodes: planned, measured by the engine on a stretch of the
+//!   program, planned again.
+//! - [`section`]: a measured section of a cut part, read in its stated frame, and each
+//!   point's deviation from the target; [`fit`] the tool the part was really cut with, and
+//!   the job that cuts the target with it (`whirl measure`).
 
 pub mod cycles;
 pub mod dry_run;
+pub mod fastest;
+pub mod fit;
 pub mod guard;
 pub mod linuxcnc;
 pub mod measure;
 pub mod plots;
+pub mod refine;
 pub mod sampled;
+pub mod section;
 pub mod simulator;
 pub mod svg;
 pub mod verify;

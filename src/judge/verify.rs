@@ -97,7 +97,8 @@ pub fn verify(
 pub fn target(job: &Job) -> Result<Target, CheckError> {
     let linkage = Linkage {
         p: job.p(),
-        ring: job.ring(),
+        // The ring `plan` plans with: a job that gives no angle gets its window's best.
+        ring: crate::plan::angles::ring(job).map_or_else(|_| job.ring(), |(ring, _)| ring),
     };
     let z_range = (job.groove.z_start, job.groove.z_start + job.groove.length);
     Ok(Target::new(

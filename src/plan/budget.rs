@@ -5,6 +5,14 @@
 //! The scallop and the cusp follow from the cut (feed, speeds) and the tool; blending and
 //! rounding from the machine; the concave stretches from the profile and the nose;
 //! interpolation gets what is left, and node choice works to it.
+//!
+//! The shares do not all add up at one point, nor on one side of the surface. The scallop,
+//! the cusp and a concave stretch only ever leave material (undercut); an overcut is what one
+//! pass cut too deep, and no other pass puts material back, so only blending and rounding add
+//! to it. Nor do they peak together: the scallop, the cusp and the rounding of the numbers
+//! each have their own profile points where they are largest. Interpolation therefore gets two
+//! rooms at every profile point, how deep it may cut there and how much it may leave, each Δ
+//! less what adds to it *there* ([`crate::plan::segment::Problem::rooms`]).
 
 use crate::geometry::linkage::{Linkage, Whirling};
 use crate::plan::table::Table;
@@ -29,7 +37,8 @@ pub struct Budget {
     pub rounding: f64,
     /// Material left in concave stretches tighter than the nose but too shallow to refuse.
     pub concave: f64,
-    /// What is left for interpolation between nodes.
+    /// What is left for interpolation between nodes where every share peaks at once (the
+    /// largest scallop and cusp): the least of the undercut rooms.
     pub interpolation: f64,
 }
 
@@ -117,19 +126,27 @@ pub fn cusp(
     workpiece_rpm: f64,
     ring_rpm: f64,
 ) -> f64 {
-    let turn = TAU * workpiece_rpm / (f64::from(inserts) * ring_rpm);
-    let big_r = linkage.ring.radius;
+    let turn = insert_turn(inserts, workpiece_rpm, ring_rpm);
     table
         .samples
         .iter()
-        .map(|s| {
-            let rho = s.pos.length();
-            let arc = rho * turn;
-            let relative = match linkage.ring.whirling {
-                Whirling::Internal => 1.0 / rho - 1.0 / big_r,
-                Whirling::External => 1.0 / rho + 1.0 / big_r,
-            };
-            arc * arc / 8.0 * relative.max(0.0)
-        })
+        .map(|s| cusp_at(s.pos.length(), linkage, turn))
         .fold(0.0, f64::max)
+}
+
+/// The workpiece's turn between the hits of two successive inserts, 2π·n_w / (z·n_t), rad.
+pub fn insert_turn(inserts: u32, workpiece_rpm: f64, ring_rpm: f64) -> f64 {
+    TAU * workpiece_rpm / (f64::from(inserts) * ring_rpm)
+}
+
+/// The insert cusp at polar radius `rho` for a workpiece turn `turn` between insert hits
+/// (clipped at zero where the ring is flatter than the work).
+pub fn cusp_at(rho: f64, linkage: &Linkage, turn: f64) -> f64 {
+    let big_r = linkage.ring.radius;
+    let arc = rho * turn;
+    let relative = match linkage.ring.whirling {
+        Whirling::Internal => 1.0 / rho - 1.0 / big_r,
+        Whirling::External => 1.0 / rho + 1.0 / big_r,
+    };
+    arc * arc / 8.0 * relative.max(0.0)
 }

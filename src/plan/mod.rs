@@ -5,8 +5,11 @@
 //! blend-speed cap of linked moves and the post again). Every step that can refuse does so
 //! before anything is written.
 
+pub mod angles;
 pub mod budget;
+pub mod feed;
 pub mod interference;
+pub mod overrides;
 pub mod path;
 pub mod scallop;
 pub mod segment;
@@ -17,8 +20,8 @@ mod tests;
 use crate::config::job::{depth_refusal, show_figure, show_number, Job};
 use crate::config::machine::{Dialect, MachineProfile};
 use crate::geometry::linkage::{Linkage, Ring, Whirling};
-use crate::geometry::profile::{ConcaveStretch, Profile, Rounding};
-use crate::plan::table::{Table, TableError};
+use crate::geometry::profile::{ConcaveStretch, Rounding};
+use crate::plan::table::TableError;
 use crate::post::gcode::format::{decimals_for, MAX_DECIMALS};
 use crate::post::gcode::read_program;
 use crate::post::gcode::writer::{self, PostSettings};
@@ -26,6 +29,7 @@ use crate::program::blending::{self, Accels};
 use crate::program::limits::{check_limits, LimitError};
 use crate::program::timing::cycle_time_s;
 use crate::program::Program;
+use angles::Misfit;
 use budget::{Budget, BudgetError, MIN_INTERPOLATION_SHARE};
 use interference::Interference;
 use path::PathSpec;
@@ -78,14 +82,21 @@ pub struct Report {
     /// Material left in concave stretches tighter than the nose but too shallow to refuse
     /// (at most [`CONCAVE_SHARE`] of Δ), mm.
     pub concave_mm: f64,
-    /// Bound on the profile error: the sum of the parts above plus the table's accuracy, mm.
+    /// The profile error the program is held to, mm: the error budget's bound (each side's
+    /// shares added where they meet), or, when `measured`, what the sweep engine measured
+    /// with what it cannot see added.
     pub max_error_mm: f64,
+    /// What the sweep engine measured of the nodes' program, when `whirl plan` measured it.
+    pub measured: Option<segment::Measured>,
     /// Δ, mm.
     pub delta_mm: f64,
     /// Estimated cycle time (junction slow-downs not counted; the blend-speed cap counted), s.
     pub cycle_time_s: f64,
     /// Installation angle used, degrees.
     pub installation_angle_deg: f64,
+    /// Why that angle: the job gives it, or it gives none and this is the angle with the
+    /// largest margin in the window ([`angles`]).
+    pub installation_angle_origin: angles::AngleOrigin,
     /// Workpiece revolutions of the linked motion.
     pub revolutions: f64,
     /// Ring-centre Z range of the linked motion, mm.
@@ -96,6 +107,11 @@ pub struct Report {
     pub decimals: [u32; 2],
     /// Lines of program text.
     pub lines: usize,
+    /// Axial feed planned, mm per workpiece revolution: the job's, or the fastest found.
+    pub axial_feed_mm: f64,
+    /// With `axial_feed = "auto"`: the limit that refuses a feed 5 % higher, and why
+    /// ([`feed::FeedBound`]); absent when the job gave its feed.
+    pub feed_bound: Option<feed::FeedBound>,
 }
 
 impl Report {
@@ -170,9 +186,15 @@ pub enum PlanError {
         /// Which bound and why.
         why: String,
     },
+    /// The job gives no installation angle, and the ring fits the groove at none.
+    #[error("tool.installation_angle_deg is not given, and {0}")]
+    NoAngle(#[from] angles::NoWindow),
     /// Δ cannot be met.
     #[error(transparent)]
     Budget(#[from] BudgetError),
+    /// No choice of nodes is within Δ.
+    #[error(transparent)]
+    Nodes(#[from] segment::NodeError),
     /// A 32-bit controller cannot hold C precisely enough over the whole groove.
     #[error(
         "on a controller with 32-bit positions C reaches {c_max:.0}° over this groove, where it \
@@ -200,6 +222,9 @@ pub enum PlanError {
     /// The post-processor refused it.
     #[error(transparent)]
     Post(#[from] writer::PostError),
+    /// No feed plans an `axial_feed = "auto"` job.
+    #[error(transparent)]
+    Feed(#[from] feed::FeedError),
 }
 
 /// The share of Δ that a concave stretch tighter than the nose may leave before the job is
@@ -272,13 +297,27 @@ fn concave_message(
     s
 }
 
-/// Plan `job` for `machine`.
+/// Plan `job` for `machine`, its nodes held within Δ by the error budget's estimate.
 pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
+    plan_with(job, machine, &segment::Estimated)
+}
+
+/// Plan `job` for `machine`, `choice` choosing the nodes (the other choice is the judge's
+/// plan → measure → re-plan loop, `crate::judge::refine`).
+pub fn plan_with(
+    job: &Job,
+    machine: &MachineProfile,
+    choice: &dyn segment::NodeChoice,
+) -> Result<Plan, PlanError> {
+    // `axial_feed = "auto"`: the fastest feed the job and the machine allow, every feed
+    // planned with this node choice.
+    if job.cut.auto_feed {
+        return feed::fastest(job, machine, choice).map(|fastest| fastest.plan);
+    }
     let profile = &job.profile;
     let p = job.p();
     let nose = job.tool.nose_radius;
     let delta = job.cut.delta;
-    let ring = job.ring();
     let (rho_min, rho_max) = profile.radius_range();
     // Numbers. A turn δc of the ring about the workpiece axis moves it off the groove's
     // surface by p·n_z·δc (screw invariance: turning by δc and shifting by p·δc maps the
@@ -296,7 +335,7 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
     let held = |v: f64| machine.number.spacing_at(v) / 2.0;
     // An absurd Δ is refused before any work: one the numbers cannot hold, or one beyond the
     // groove's depth. What passes gets its decimals here.
-    let x_clear_least = clear_x(&ring, rho_max).unwrap_or(0.0);
+    let x_clear_least = clear_x(&job.ring(), rho_max).unwrap_or(0.0);
     let (linear, angular) = check_delta(job, machine, (rho_min, rho_max), x_clear_least)?;
     // Concave stretches tighter than the nose: the shallow ones are a cost, the others refused.
     let limit = CONCAVE_SHARE * delta;
@@ -319,19 +358,12 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
             rounding,
         });
     }
+    // The installation angle: the job's, or the one with the largest margin in its windows.
+    let (ring, angle_origin) = angles::ring(job)?;
     let linkage = Linkage { p, ring };
-    let x_clear = clear_x(&ring, rho_max)?;
     let tolerance = TABLE_SHARE * delta;
-    let table = Table::build(profile, &linkage, tolerance).map_err(|cause| PlanError::Table {
-        cause,
-        hint: angle_hint(profile, &linkage, job.groove.starts),
-    })?;
-    interference::check(profile, &table, &linkage, job.groove.starts, delta / 10.0).map_err(
-        |cause| PlanError::Interference {
-            cause,
-            hint: angle_hint(profile, &linkage, job.groove.starts),
-        },
-    )?;
+    let angles::Fitted { table, x_clear } =
+        angles::fit(job, &linkage).map_err(|misfit| misfit.refusal(angles::hint(job)))?;
 
     let (z_lo, z_hi) = table.z_range();
     let feed = job.cut.axial_feed;
@@ -364,7 +396,8 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
     let blend = machine
         .blend_tolerance_mm
         .map_or(0.0, |b| b.min(delta / 5.0));
-    let scallop = crate::plan::scallop::ring(&table, &linkage, feed);
+    let scallops = crate::plan::scallop::ring(&table, &linkage, feed);
+    let scallop = scallops.max();
     let cusp = budget::cusp(
         &table,
         &linkage,
@@ -373,8 +406,6 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         job.cut.ring_rpm,
     );
     let budget = Budget::new(delta, scallop, cusp, blend, rounding, concave, feed)?;
-    let nodes = segment::choose(&table, budget.interpolation - tolerance);
-
     let spec = PathSpec {
         p,
         period: job.period(),
@@ -386,6 +417,20 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         z_to,
         x_clear,
     };
+    let chosen = choice.choose(&segment::Problem {
+        job,
+        linkage: &linkage,
+        table: &table,
+        budget: &budget,
+        scallops: &scallops,
+        table_accuracy: tolerance,
+        rounding: [
+            written(linear) + linear_held,
+            written(angular) * mm_per_deg + c_held,
+        ],
+        spec: &spec,
+    })?;
+    let nodes = &chosen.nodes;
     let title = format!(
         "whirl: {}-start {} hand groove, lead {} mm, {} whirling, R {} r {}, delta {} mm",
         job.groove.starts,
@@ -402,7 +447,7 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         ring.nose,
         delta
     );
-    let mut path = path::build(&nodes, &spec, &title);
+    let mut path = path::build(&nodes.nodes, &spec, &title);
     check_limits(&path.program, machine).map_err(|limit| PlanError::Limits { limit })?;
     let settings = PostSettings {
         dialect: machine.dialect,
@@ -437,7 +482,7 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
     let report = Report {
         segments: path.segments,
         nodes_per_period: nodes.per_period(),
-        interp_error_mm: nodes.max_error,
+        interp_error_mm: nodes.overcut.max(nodes.undercut),
         scallop_mm: scallop,
         cusp_mm: cusp,
         blend_mm: blend,
@@ -446,15 +491,19 @@ pub fn plan(job: &Job, machine: &MachineProfile) -> Result<Plan, PlanError> {
         blend_time_added_s: capped.added_s,
         rounding_mm: rounding,
         concave_mm: concave,
-        max_error_mm: nodes.max_error + tolerance + scallop + cusp + blend + rounding + concave,
+        max_error_mm: chosen.max_error,
+        measured: chosen.measured,
         delta_mm: delta,
         cycle_time_s: cycle_time_s(&path.program, machine),
         installation_angle_deg: ring.installation.to_degrees(),
+        installation_angle_origin: angle_origin,
         revolutions: path.revolutions,
         z_range_mm: [z_from, z_to],
         overrun_mm: (z_hi - z_lo) + 2.0 * feed,
         decimals: [linear, angular],
         lines: text.lines().count(),
+        axial_feed_mm: feed,
+        feed_bound: None,
     };
     Ok(Plan {
         program: path.program,
@@ -553,12 +602,12 @@ fn check_delta(
 /// Internal: the ring centred on the axis (X = 0); its tip circle, tilted by δ, stays at least
 /// R·cos δ from the axis, so it clears a workpiece of radius ρ_max when R·cos δ − r > ρ_max.
 /// External: the disk beside the work, its nearest point at X − R − r from the axis.
-fn clear_x(ring: &Ring, rho_max: f64) -> Result<f64, PlanError> {
+fn clear_x(ring: &Ring, rho_max: f64) -> Result<f64, Misfit> {
     match ring.whirling {
         Whirling::Internal => {
             let room = ring.radius * ring.installation.cos() - ring.nose - rho_max;
             if room <= 0.0 {
-                return Err(PlanError::Clearance {
+                return Err(Misfit::Clearance {
                     reach: ring.radius * ring.installation.cos() - ring.nose,
                     rho_max,
                 });
@@ -567,43 +616,4 @@ fn clear_x(ring: &Ring, rho_max: f64) -> Result<f64, PlanError> {
         }
         Whirling::External => Ok(ring.radius + ring.nose + rho_max + CLEARANCE),
     }
-}
-
-/// Installation angles (whole degrees) at which the linkage and the interference check pass,
-/// as a sentence to append to an error; empty when none is found.
-fn angle_hint(profile: &Profile, linkage: &Linkage, starts: u32) -> String {
-    let works = |deg: f64| {
-        let mut l = *linkage;
-        l.ring.installation = deg.to_radians();
-        Table::build(profile, &l, 1e-3)
-            .ok()
-            .is_some_and(|t| interference::check(profile, &t, &l, starts, 1e-3).is_ok())
-    };
-    let mut ranges: Vec<(f64, f64)> = Vec::new();
-    for d in 0..=45 {
-        let d = f64::from(d);
-        if works(d) {
-            match ranges.last_mut() {
-                Some(r) if r.1 == d - 1.0 => r.1 = d,
-                _ => ranges.push((d, d)),
-            }
-        }
-    }
-    if ranges.is_empty() {
-        return "\nno installation angle from 0° to 45° avoids it with this ring".into();
-    }
-    let list: Vec<String> = ranges
-        .iter()
-        .map(|(a, b)| {
-            if a == b {
-                format!("{a}°")
-            } else {
-                format!("{a}°–{b}°")
-            }
-        })
-        .collect();
-    format!(
-        "\ninstallation angles that work with this ring: {} (tool.installation_angle_deg)",
-        list.join(", ")
-    )
 }

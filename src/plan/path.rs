@@ -19,9 +19,18 @@
 //! precision back, and grbl stops all motion for every G92 (a dwell mark on the groove).
 //! The planner counts C's resolution at its largest value in the error budget instead.
 
-use crate::plan::segment::Nodes;
 use crate::program::{Move, Program};
 use std::f64::consts::TAU;
+
+/// One node of the period's pattern: a phase and the ring-centre X the program gives it there.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Node {
+    /// ψ, rad.
+    pub phase: f64,
+    /// X, mm: the table's X(ψ), or off it by what the node choice chose
+    /// ([`crate::plan::segment`]).
+    pub x: f64,
+}
 
 /// What the path needs besides the nodes.
 #[derive(Debug, Clone, Copy)]
@@ -58,28 +67,29 @@ pub struct Path {
     pub revolutions: f64,
 }
 
-/// Build the program for the groove from the nodes of one period.
-pub fn build(nodes: &Nodes, spec: &PathSpec, title: &str) -> Path {
+/// Build the program for the groove from the nodes of one period, ψ increasing, the last the
+/// first one period on.
+pub fn build(nodes: &[Node], spec: &PathSpec, title: &str) -> Path {
     let PathSpec { p, feed, .. } = *spec;
     let rate = 1.0 + feed / (TAU * p); // dψ/dC
     let c_of = |psi: f64| (psi - spec.z_from / p) / rate;
     let z_of = |c: f64| spec.z_from + feed * c / TAU;
-    let pattern = &nodes.nodes[..nodes.nodes.len() - 1];
-    let base = pattern[0].contact.phase;
+    let pattern = &nodes[..nodes.len() - 1];
+    let base = pattern[0].phase;
     // The first node at or after ψ(C = 0), the last before Z passes z_to.
     let psi_start = spec.z_from / p;
     let mut period_index = ((psi_start - base) / spec.period).floor() as i64;
     let mut k = 0;
     let mut poses = Vec::new();
     loop {
-        let psi = pattern[k].contact.phase + period_index as f64 * spec.period;
+        let psi = pattern[k].phase + period_index as f64 * spec.period;
         if psi >= psi_start {
             let c = c_of(psi);
             let z = z_of(c);
             if z > spec.z_to {
                 break;
             }
-            poses.push((pattern[k].contact.pose.x, z, c.to_degrees()));
+            poses.push((pattern[k].x, z, c.to_degrees()));
         }
         k += 1;
         if k == pattern.len() {
@@ -139,34 +149,17 @@ pub fn build(nodes: &Nodes, spec: &PathSpec, title: &str) -> Path {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::linkage::{Contact, Pose as LinkagePose};
-    use crate::plan::table::Sample;
     use crate::program::Position;
-    use glam::DVec2;
     use std::f64::consts::PI;
 
     /// One start, four nodes a quarter period apart with X rocking between 10 and 11 mm.
-    fn nodes() -> Nodes {
-        let sample = |k: usize| {
-            let phase = k as f64 * PI / 2.0;
-            Sample {
-                u: k as f64,
-                pos: DVec2::ZERO,
-                contact: Contact {
-                    pose: LinkagePose {
-                        x: 10.0 + (k % 2) as f64,
-                        c: phase,
-                        z: 0.0,
-                    },
-                    phase,
-                    normal_x: 1.0,
-                },
-            }
-        };
-        Nodes {
-            nodes: (0..=4).map(sample).collect(),
-            max_error: 0.0,
-        }
+    fn nodes() -> Vec<Node> {
+        (0..=4)
+            .map(|k| Node {
+                phase: k as f64 * PI / 2.0,
+                x: 10.0 + (k % 2) as f64,
+            })
+            .collect()
     }
 
     /// A 2 mm lead, 20 mm of groove: 10 workpiece turns, 3600° of C.

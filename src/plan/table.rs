@@ -7,9 +7,9 @@
 //! on samples alone. Along the way it finds what makes a profile unwhirlable: a point with no
 //! pose, ψ turning back, or X jumping (the ring meeting the groove on another branch).
 
-use crate::geometry::linkage::{Contact, Linkage, LinkageError};
-use crate::geometry::profile::Profile;
-use glam::DVec2;
+use crate::geometry::linkage::{turn, Contact, Linkage, LinkageError};
+use crate::geometry::profile::{surface_normal, Profile};
+use glam::{DVec2, DVec3};
 use std::f64::consts::TAU;
 
 /// One solved profile sample.
@@ -21,6 +21,13 @@ pub struct Sample {
     pub pos: DVec2,
     /// The pose and its phase (unwrapped along the profile).
     pub contact: Contact,
+    /// The outward unit normal at the contact in the machine frame (turned by the pose's C):
+    /// to first order an error δ of the ring's X moves the surface there by `normal.x·δ`, one of
+    /// its Z by `normal.z·δ` (kinematics.md: negative is overcut). The ring moving by +x̂
+    /// changes a surface point's gap by the outward normal along that shift: internal
+    /// whirling, which cuts on the −X side, cuts deeper with a larger X (normal.x < 0);
+    /// external whirling leaves more (normal.x > 0).
+    pub normal: DVec3,
 }
 
 /// The cutter-location table of one period, ordered by increasing phase ψ.
@@ -101,6 +108,10 @@ impl Table {
                     u,
                     pos: point.pos,
                     contact,
+                    normal: turn(
+                        surface_normal(point.pos, point.tangent, linkage.p),
+                        contact.pose.c,
+                    ),
                 })
                 .map_err(|error| TableError::Linkage {
                     x: point.pos.x,
@@ -270,8 +281,40 @@ mod tests {
                 u: mid_u,
                 pos: profile.point(mid_u).pos,
                 contact: mid,
+                normal: DVec3::ZERO,
             };
             assert!(chord_deviation(&pair[0], &pair[1], &m) <= 1e-4 * 1.5);
+        }
+    }
+
+    #[test]
+    fn the_normal_at_a_contact_is_how_its_gap_changes_with_x() {
+        // Moving the ring by δ along X moves a surface point's gap by n_x·δ, n the outward
+        // normal at the contact in the machine frame: negative for internal whirling, which
+        // cuts on the −X side (a larger X cuts deeper), positive for external.
+        let profile = lobe(60.0);
+        for (whirling, radius) in [(Whirling::Internal, 50.0), (Whirling::External, 45.0)] {
+            let mut l = linkage(radius, 20.0, 60.0);
+            l.ring.whirling = whirling;
+            let t = Table::build(&profile, &l, 1e-4).unwrap();
+            for s in t.samples.iter().step_by(7) {
+                let q = DVec3::new(s.pos.x, s.pos.y, 0.0);
+                let h = 1e-6;
+                let gap = |dx: f64| {
+                    let mut pose = s.contact.pose;
+                    pose.x += dx;
+                    l.gap(q, &pose)
+                };
+                let slope = (gap(h) - gap(-h)) / (2.0 * h);
+                assert!(
+                    (slope - s.normal.x).abs() < 1e-6,
+                    "{whirling:?}: {slope} {s:?}"
+                );
+                assert!((s.normal.length() - 1.0).abs() < 1e-12);
+                assert!((s.normal.x.abs() - s.contact.normal_x).abs() < 1e-12);
+                let cuts_deeper = s.normal.x < 0.0;
+                assert_eq!(cuts_deeper, whirling == Whirling::Internal, "{s:?}");
+            }
         }
     }
 

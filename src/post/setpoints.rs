@@ -128,7 +128,7 @@ impl SampleConfig {
             value,
             reason,
         };
-        if self.period.is_zero() || self.period.subsec_nanos() % 1000 != 0 {
+        if self.period.is_zero() || !self.period.subsec_nanos().is_multiple_of(1000) {
             return Err(config(
                 "period",
                 format!("{:?}", self.period),

@@ -777,6 +777,14 @@ impl Run {
             };
             self.write(log, log::Event::Message { text });
         }
+        if let Some(percent) = self.caller.as_mut().and_then(Commands::try_feed_override) {
+            session.feed_override(percent);
+            let event = log::Event::FeedOverride {
+                percent,
+                state: log::FeedOverrideState::Asked,
+            };
+            self.write(log, event);
+        }
     }
 
     /// Reads until at most [`LOCKSTEP_WINDOW`] cycles are unacknowledged.
@@ -844,6 +852,13 @@ impl Run {
                     self.outcome.stop.get_or_insert_with(|| reason.clone());
                 }
                 Event::Halted { unconfirmed } => self.outcome.unconfirmed = unconfirmed.clone(),
+                Event::FeedOverride { percent } => {
+                    let event = log::Event::FeedOverride {
+                        percent: *percent,
+                        state: log::FeedOverrideState::Running,
+                    };
+                    self.write(log, event);
+                }
                 _ => {}
             }
             let text = event.to_string();

@@ -28,7 +28,7 @@ use super::control::{Command, Commands};
 use super::progress::{Progress, ProgressFn, Unit};
 use crate::log::{self, ExecLog, LogError};
 use crate::post::modbus::Segment;
-use crate::protocol::modbus::map::UNIT_ID;
+use crate::protocol::modbus::map::{reg, UNIT_ID};
 use crate::protocol::modbus::{
     Exception, Request, Response, RingWriter, WriterError, WriterEvent, WriterOptions,
 };
@@ -507,6 +507,16 @@ impl Run<'_> {
             };
             self.log.write(self.t(), log::Event::Message { text });
         }
+        if let Some(percent) = self.commands.as_mut().and_then(Commands::try_feed_override) {
+            self.writer.feed_override(percent);
+            self.log.write(
+                self.t(),
+                log::Event::FeedOverride {
+                    percent,
+                    state: log::FeedOverrideState::Asked,
+                },
+            );
+        }
     }
 
     /// The writer's events to the log, the caller's display and the outcome.
@@ -566,6 +576,36 @@ impl Run<'_> {
                 WriterEvent::Aborted => self.outcome.aborted = true,
                 WriterEvent::Stopped => self.outcome.stopped = self.stop_asked.clone(),
                 WriterEvent::Failed(error) => self.outcome.failure = Some(error),
+                WriterEvent::FeedOverride(percent) => self.log.write(
+                    time,
+                    log::Event::FeedOverride {
+                        percent,
+                        state: log::FeedOverrideState::Running,
+                    },
+                ),
+                WriterEvent::FeedOverrideRefused { percent, exception } => {
+                    let why = match exception {
+                        Exception::IllegalDataAddress => format!(
+                            "the controller's register map has no FEED_OVERRIDE register \
+                             ({}): set the override on its panel",
+                            reg::FEED_OVERRIDE
+                        ),
+                        other => format!("FEED_OVERRIDE was refused: {other}"),
+                    };
+                    self.log.write(
+                        time,
+                        log::Event::Message {
+                            text: format!("feed override {percent} % not taken: {why}"),
+                        },
+                    );
+                    self.log.write(
+                        time,
+                        log::Event::FeedOverride {
+                            percent,
+                            state: log::FeedOverrideState::NotTaken,
+                        },
+                    );
+                }
             }
         }
     }

@@ -316,8 +316,8 @@ impl StreamError {
 /// What a fieldbus transport runs: the moves of a [`Posted`] program from where a run
 /// picks it up, behind the approach that re-enters there, with each move's program line, so
 /// that a move the run stops at can be told as a line to resume at.
-struct Pickup {
-    program: Program,
+pub(crate) struct Pickup {
+    pub(crate) program: Program,
     /// The program line (0-based) of each move; the approach's is the resume line's.
     lines: Vec<usize>,
     /// One past the program's last line: where a run that ran every move would resume.
@@ -325,6 +325,14 @@ struct Pickup {
 }
 
 impl Pickup {
+    /// Where a run resumed at `line` picks `posted` up: the re-entry there, then the rest.
+    pub(crate) fn resuming(posted: &Posted, line: usize) -> Result<Pickup, StreamError> {
+        let from = posted.first_move_at(line);
+        let approach = approach(&posted.program, from)
+            .map_err(|error| StreamError::Reentry { line, error })?;
+        Ok(Pickup::new(posted, approach, from, Some(line)))
+    }
+
     fn new(posted: &Posted, approach: Vec<Move>, from: usize, line: Option<usize>) -> Pickup {
         let lines = std::iter::repeat_n(line.unwrap_or(0), approach.len())
             .chain(posted.move_lines[from..].iter().map(|&l| l - 1))
@@ -341,12 +349,12 @@ impl Pickup {
     }
 
     /// The program line of move `index` of [`Pickup::program`].
-    fn line_of(&self, index: usize) -> usize {
+    pub(crate) fn line_of(&self, index: usize) -> usize {
         self.lines.get(index).copied().unwrap_or(self.end)
     }
 
     /// A transport's `error`, with where to resume if it failed mid-run at `resume_move`.
-    fn interrupted(
+    pub(crate) fn interrupted(
         &self,
         resume_move: Option<usize>,
         error: impl Into<StreamError>,

@@ -57,7 +57,7 @@ use tokio::time::{interval_at, sleep_until, Instant, Interval, MissedTickBehavio
 use tokio_serial::{ClearBuffer, SerialPort, SerialPortBuilderExt};
 use tracing::Instrument;
 
-use super::control::{Command, Commands};
+use super::control::{Command, Commands, Request};
 use super::progress::{Progress, ProgressFn, Unit};
 use super::run::{check_program, PreflightError};
 use crate::config::machine::MachineProfile;
@@ -632,7 +632,10 @@ impl Run<'_> {
                 at = next_tick(&mut ticker) => {
                     self.streamer.poll(at.duration_since(self.start));
                 }
-                command = next_command(&mut commands) => self.command(command),
+                request = next_request(&mut commands) => match request {
+                    Request::Command(command) => self.command(command),
+                    Request::FeedOverride(percent) => self.feed_override(percent),
+                },
                 () = wait_until(deadline) => {
                     if self.stand_by.take().is_some() {
                         // The wait after a stop ran out: the run ends at the top of the loop.
@@ -700,6 +703,17 @@ impl Run<'_> {
         };
         self.write_log(log::Event::Message {
             text: text.to_owned(),
+        });
+    }
+
+    /// The caller's feed override (checked against the cap by the [`Control`](super::Control)):
+    /// the real-time bytes go out one at a time as `Ov:` confirms each.
+    fn feed_override(&mut self, percent: u16) {
+        tracing::debug!(percent, "feed override asked");
+        self.streamer.feed_override(percent);
+        self.write_log(log::Event::FeedOverride {
+            percent,
+            state: log::FeedOverrideState::Asked,
         });
     }
 
@@ -852,6 +866,32 @@ impl Run<'_> {
                 self.all_acked_at = Some(self.start.elapsed());
                 self.bytes_at_all_acked = self.bytes_written;
                 return true;
+            }
+            Event::FeedOverride { percent } => {
+                tracing::debug!(percent, "feed override reported");
+                log::Event::FeedOverride {
+                    percent,
+                    state: log::FeedOverrideState::Running,
+                }
+            }
+            Event::FeedOverrideNotTaken { asked, reported } => {
+                tracing::warn!(asked, ?reported, "feed override not taken");
+                self.write_log(log::Event::Message {
+                    text: match reported {
+                        None => format!(
+                            "feed override {asked} % not confirmed: the controller reports no \
+                             Ov: field, so whirl cannot tell the feed it runs at; set it on the \
+                             controller's panel"
+                        ),
+                        Some(at) => format!(
+                            "feed override {asked} % not reached: the controller stays at {at} %"
+                        ),
+                    },
+                });
+                log::Event::FeedOverride {
+                    percent: asked,
+                    state: log::FeedOverrideState::NotTaken,
+                }
             }
             Event::MotionDone => {
                 // Nothing new from the controller: the status report before it said so.
@@ -1008,10 +1048,10 @@ async fn next_tick(ticker: &mut Option<Interval>) -> Instant {
     }
 }
 
-/// The caller's next command, or never without any.
-async fn next_command(commands: &mut Option<Commands>) -> Command {
+/// The caller's next command or feed override, or never without any.
+async fn next_request(commands: &mut Option<Commands>) -> Request {
     match commands {
-        Some(commands) => commands.next().await,
+        Some(commands) => commands.next_request().await,
         None => pending().await,
     }
 }

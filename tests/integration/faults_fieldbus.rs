@@ -151,6 +151,7 @@ fn stderr_of(child: &mut Child) -> String {
 /// `whirl stream PROGRAM --transport modbus-tcp --port ADDRESS --log LOG EXTRA…`, started.
 fn whirl_stream_modbus(program: &Path, address: SocketAddr, log: &Path, extra: &[&str]) -> Child {
     Command::new(env!("CARGO_BIN_EXE_whirl"))
+        .env("WHIRL_DB", util::records_db())
         .args([
             OsStr::new("stream"),
             program.as_os_str(),
@@ -512,6 +513,12 @@ fn whirl_with_file_limit(kib: u64, args: &[&OsStr]) -> Child {
         .arg("-c")
         .arg(format!("ulimit -f {kib}; trap '' XFSZ; exec \"$0\" \"$@\""))
         .arg(env!("CARGO_BIN_EXE_whirl"))
+        // Its records beside its log (the last argument): the tests' shared database is
+        // longer than the file size limit.
+        .env(
+            "WHIRL_DB",
+            Path::new(args[args.len() - 1]).with_file_name("runs.sqlite"),
+        )
         .args(args)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())

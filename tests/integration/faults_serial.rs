@@ -67,6 +67,9 @@ impl Bench {
 
     fn stream_with(&self, mut command: Command, args: &[&OsStr]) -> Child {
         command
+            // Its records beside its log: a run under a file size limit cannot grow the
+            // tests' shared database.
+            .env("WHIRL_DB", self.log.with_file_name("runs.sqlite"))
             .args([OsStr::new("stream"), self.program.as_os_str()])
             .args([OsStr::new("--port"), self.link.as_os_str()])
             .args([OsStr::new("--log"), self.log.as_os_str()])

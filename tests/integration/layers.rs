@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 /// The layers in the order they may import each other: a module may name its own layer
 /// and the ones before it.
-const LAYERS: [&str; 10] = [
+const LAYERS: [&str; 11] = [
     "geometry",
     "config",
     "program",
@@ -20,6 +20,7 @@ const LAYERS: [&str; 10] = [
     "log",
     "transport",
     "judge",
+    "records",
     "console",
 ];
 

@@ -1,10 +1,12 @@
 //! Integration tests: one binary, shared helpers in `util`.
 
+mod angles;
 mod can_session;
 mod can_wire;
 mod cli;
 mod control;
 mod dry_run;
+mod fastest;
 mod faults_fieldbus;
 mod faults_serial;
 mod grbl_open;
@@ -13,11 +15,14 @@ mod link;
 mod linkage;
 mod logs;
 mod machines;
+mod measure;
 mod modbus_map;
 mod modbus_wire;
 mod outputs;
+mod overrides;
 mod profiles;
 mod python_client;
+mod records;
 mod sim;
 mod stream;
 mod sweep;

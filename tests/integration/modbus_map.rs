@@ -25,7 +25,8 @@ use whirl::protocol::modbus::{
 use whirl_sim::modbus::{self as bank, Bank, BankOptions};
 use whirl_sim::{Controller, ControllerOptions, Event};
 
-fn to_bank(request: &Request) -> bank::Request {
+/// A writer's request as the simulator's bank takes it (shared with the override tests).
+pub(crate) fn to_bank(request: &Request) -> bank::Request {
     match request {
         Request::ReadHolding { address, count } => bank::Request::ReadHolding {
             address: *address,
@@ -42,7 +43,10 @@ fn to_bank(request: &Request) -> bank::Request {
     }
 }
 
-fn from_bank(answer: Result<bank::Response, bank::Exception>) -> Result<Response, Exception> {
+/// The bank's answer as the writer reads it.
+pub(crate) fn from_bank(
+    answer: Result<bank::Response, bank::Exception>,
+) -> Result<Response, Exception> {
     match answer {
         Ok(bank::Response::ReadHolding(values)) => Ok(Response::ReadHolding(values)),
         Ok(bank::Response::WriteSingle { address, value }) => {

@@ -403,7 +403,7 @@ async fn a_modbus_timeout_and_reconnect_loses_no_segment_and_repeats_none() {
     let bank = bank(BankOptions::default().slots);
     let mut held = false;
     let plan = move |n: usize, pdu: &[u8]| {
-        if n % 7 == 0 {
+        if n.is_multiple_of(7) {
             Fault::LoseAnswer
         } else if !held && n > 100 && is_slot_write(pdu) {
             held = true;

@@ -512,6 +512,7 @@ fn an_input_of_the_run_is_refused_as_an_output_and_left_as_it_was() {
 /// must end as the work did, saying nothing of the pipe.
 fn with_stdout_closed(args: &[&OsStr]) -> Output {
     let mut child = Command::new(env!("CARGO_BIN_EXE_whirl"))
+        .env("WHIRL_DB", util::records_db())
         .args(args)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -589,6 +590,7 @@ fn a_full_standard_output_is_an_error_said_once() {
     let dir = tempfile::tempdir().unwrap();
     let log = log_in(dir.path());
     let o = Command::new(env!("CARGO_BIN_EXE_whirl"))
+        .env("WHIRL_DB", util::records_db())
         .args([os("log"), os("summary"), log.as_os_str()])
         .stdout(full)
         .output()

@@ -56,6 +56,7 @@ fn plan(job: &Path) -> Planned {
     let dir = job.parent().unwrap();
     let (out, report) = (dir.join("p.nc"), dir.join("r.json"));
     let mut child = Command::new(env!("CARGO_BIN_EXE_whirl"))
+        .env("WHIRL_DB", util::records_db())
         .arg("plan")
         .arg(job)
         .arg("-o")

@@ -25,9 +25,19 @@ pub fn examples() -> Vec<PathBuf> {
     jobs
 }
 
+/// The run records of every `whirl` a test starts (`WHIRL_DB`): a SQLite file in the
+/// build's temporary folder, never the user's own (`~/.local/share/whirl/runs.sqlite`).
+/// The tests share it, as concurrent runs on a shop's host do: the store waits its turn
+/// to write (SQLite's busy timeout). A test that looks at records makes a database of its
+/// own (`tests/integration/records.rs`).
+pub fn records_db() -> PathBuf {
+    Path::new(env!("CARGO_TARGET_TMPDIR")).join("whirl-test-runs.sqlite")
+}
+
 /// Run the `whirl` binary with `args`.
 pub fn whirl(args: &[&std::ffi::OsStr]) -> Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_whirl"))
+        .env("WHIRL_DB", records_db())
         .args(args)
         .output()
         .expect("the whirl binary runs")

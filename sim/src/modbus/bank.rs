@@ -65,6 +65,10 @@ const POS_C: u16 = 28;
 const CONTROL: u16 = 32;
 const HEAD: u16 = 33;
 const WATCHDOG: u16 = 34;
+/// `FEED_OVERRIDE`, percent of the programmed feed, 10–200.
+const FEED_OVERRIDE: u16 = 40;
+/// The range `FEED_OVERRIDE` takes.
+const FEED_OVERRIDE_RANGE: std::ops::RangeInclusive<u16> = 10..=200;
 const RING: u16 = 256;
 /// Registers in the status block, `STATE..CONTROL`.
 const STATUS_LEN: usize = (CONTROL - STATE) as usize;
@@ -161,6 +165,9 @@ pub struct BankOptions {
     /// `MAX_SEGMENT_RATE`, segments per second, at least 1. Reported, not enforced: the
     /// simulator has no interpolation cycle.
     pub max_segment_rate: u16,
+    /// The map has the `FEED_OVERRIDE` register (40); a PLC built before it answers
+    /// exception 02 there.
+    pub feed_override: bool,
 }
 
 impl Default for BankOptions {
@@ -173,6 +180,7 @@ impl Default for BankOptions {
             word_order: WordOrder::HighFirst,
             watchdog_timeout_ms: 1000,
             max_segment_rate: 1000,
+            feed_override: true,
         }
     }
 }
@@ -481,6 +489,7 @@ impl Bank {
             CONTROL => self.control,
             HEAD => self.head,
             WATCHDOG => self.watchdog,
+            FEED_OVERRIDE if o.feed_override => u16::from(self.controller.feed_override()),
             a if self.in_ring(a) => self.ring[usize::from(a - RING)],
             _ => return None,
         })
@@ -576,6 +585,14 @@ impl Bank {
                     self.watchdog = value;
                     self.watchdog_at = self.controller.now();
                 }
+                Ok(())
+            }
+            FEED_OVERRIDE if self.options.feed_override => {
+                if !FEED_OVERRIDE_RANGE.contains(&value) {
+                    return Err(Exception::IllegalDataValue);
+                }
+                // Within 10..=200: fits a u8.
+                self.controller.set_feed_override(value as u8);
                 Ok(())
             }
             a if self.in_ring(a) => {

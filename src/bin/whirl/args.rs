@@ -14,6 +14,15 @@ use crate::numbers::{baud, number, rx, time_scale, whole_in};
     about = "Plan and post thread-whirling programs"
 )]
 pub(crate) struct Cli {
+    /// The run records' database (docs/records.md): a SQLite file, a sqlite: URL or a
+    /// postgres:// URL; default: $WHIRL_DB, else runs.sqlite in the user's data folder
+    /// ($XDG_DATA_HOME/whirl or ~/.local/share/whirl), made on first use.
+    #[arg(long, global = true, value_name = "URL")]
+    pub(crate) db: Option<String>,
+    /// Run even if the run cannot be recorded in the database (said on stderr; its log,
+    /// if it has one, keeps it). Without it such a run does not start.
+    #[arg(long, global = true)]
+    pub(crate) allow_unrecorded: bool,
     #[command(subcommand)]
     pub(crate) command: Command,
 }
@@ -37,6 +46,10 @@ pub(crate) enum Command {
         /// nothing) if the measured error exceeds Δ.
         #[arg(long)]
         verify: bool,
+        /// Plan at the fastest feed instead of the job's (as `axial_feed = "auto"` does): the
+        /// largest the engine measures within Δ and the machine sustains.
+        #[arg(long)]
+        fastest: bool,
     },
     /// Machined sections of tools swept along helices (the swept-volume engine).
     Sweep {
@@ -85,6 +98,12 @@ pub(crate) enum Command {
         /// once the machine has been checked.
         #[arg(long)]
         unlock: bool,
+        /// Run at this percent of the programmed feed from the start (a job only: refused
+        /// above the cap that keeps the insert cusp within its share of Δ, naming it, before
+        /// anything is sent). On a terminal, + and - change it by 10 % and 0 goes back to
+        /// 100 % while the program runs (docs/streaming.md).
+        #[arg(long, value_name = "PERCENT")]
+        feed_override: Option<u16>,
     },
     /// Dry-run a job: plan it, start the simulated controller in this process on a
     /// pseudo-terminal, stream the program to it through the same serial code a machine gets,
@@ -128,11 +147,21 @@ pub(crate) enum Command {
         /// libfaketime; otherwise 1, real time).
         #[arg(long, value_enum, default_value_t = Controller::WhirlSim)]
         controller: Controller,
+        /// Run at this percent of the programmed feed from the start, as `whirl stream
+        /// --feed-override` (refused above the cusp's cap); on a terminal, + - 0 change it.
+        #[arg(long, value_name = "PERCENT")]
+        feed_override: Option<u16>,
+    },
+    /// The record of every plan, dry run and stream: list them, or show one.
+    Runs {
+        #[command(subcommand)]
+        command: crate::runs::RunsCommand,
     },
     /// Serve the operator's web console: the jobs under --jobs with their plans and
-    /// verification, dry runs on the simulator with live position, progress, alarms, the
-    /// groove as it is cut, and Hold, Resume, Stop (docs/console.md). Listens on loopback
-    /// unless told otherwise; elsewhere only with an access token.
+    /// verification, dry runs on the simulator and streams to the machine with live
+    /// position, progress, alarms, the groove as it is cut, Hold, Resume, Stop, and the
+    /// history of every recorded run (docs/console.md). Listens on loopback unless told
+    /// otherwise; elsewhere only with an access token.
     Serve {
         /// A machine the console runs (a profile; repeat for more); default: the built-in
         /// simulator's.
@@ -154,6 +183,16 @@ pub(crate) enum Command {
         #[command(subcommand)]
         command: LogCommand,
     },
+    /// Measure a cut part: a measured axial or transverse section (a profile projector's or
+    /// CMM's points, the frame stated in the file's header or with --frame) against the
+    /// job's groove, each point's deviation along the normal; with --fit the ring radius,
+    /// nose radius and installation angle it was really cut with, with --correct the job
+    /// that cuts the target with that tool. Exits 0 within Δ, 2 beyond it, 1 on errors.
+    Measure(crate::measure::MeasureArgs),
+    /// The installation angles at which a job plans without interference: the max error
+    /// and the segments across that window, and the angle with the largest margin (the one
+    /// `plan` takes when the job gives none), as a table and, with --svg, a plot.
+    Angles(crate::angles::AnglesArgs),
     /// Measure a program's profile error against a job's groove with the swept-volume engine.
     /// Exits 0 within Δ, 2 beyond it (the report is written either way), 1 on errors.
     Verify {

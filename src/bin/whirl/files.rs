@@ -14,6 +14,10 @@
 //!   machine profile, a log;
 //! - the same file as another output of the run.
 //!
+//! The run records' SQLite file ([`Files::database`]) is written in place, not renamed, but
+//! it may be none of those files either, nor anything but a regular file: SQLite would
+//! write its pages over the job, the log or the report, or into a device.
+//!
 //! [`write_all`] then writes them all or none: each is staged in a temporary sibling, then
 //! they are renamed into place one after the other, and if one rename fails the ones before
 //! it are put back as they were. No temporary file outlives the call, whichever way it ends
@@ -35,6 +39,8 @@ pub(crate) struct Files {
     outputs: Vec<(&'static str, PathBuf)>,
     /// The files it reads or appends to.
     inputs: Vec<Input>,
+    /// The run records' SQLite file, and what names it (`--db`, `WHIRL_DB`, the default).
+    database: Option<(&'static str, PathBuf)>,
 }
 
 /// A file a command reads, or a log it appends to.
@@ -94,6 +100,13 @@ impl Files {
         self
     }
 
+    /// The SQLite file the run is recorded in, and what names it (`--db`); `None`: none
+    /// (not recorded, or not in a file).
+    pub(crate) fn database(mut self, database: Option<(&'static str, PathBuf)>) -> Files {
+        self.database = database;
+        self
+    }
+
     /// A job file and the profile points file it names (if it names one and can be read:
     /// a job that cannot is refused by its loading, with the reason).
     pub(crate) fn job(self, path: &Path) -> Files {
@@ -103,8 +116,14 @@ impl Files {
     }
 
     /// Refuses an output that is not a regular file (or nothing yet), lies in no folder, is
-    /// one of the inputs, or is named twice; and a log that is one of the inputs.
+    /// one of the inputs, or is named twice; a log that is one of the inputs; and a records
+    /// database that is not a regular file (or nothing yet) or is one of the run's files.
     pub(crate) fn check(&self) -> Result<()> {
+        self.check_outputs()?;
+        self.check_database()
+    }
+
+    fn check_outputs(&self) -> Result<()> {
         for (i, (option, path)) in self.outputs.iter().enumerate() {
             let refuse = |why: String| {
                 anyhow::anyhow!("refusing to write {} ({option}): {why}", path.display())
@@ -139,6 +158,45 @@ impl Files {
                         input.verb()
                     );
                 }
+            }
+        }
+        Ok(())
+    }
+
+    /// The records database: a regular file or nothing yet (SQLite makes it), and none of
+    /// the files the run reads, appends to or writes.
+    fn check_database(&self) -> Result<()> {
+        let Some((what, path)) = &self.database else {
+            return Ok(());
+        };
+        let refuse = |why: String| {
+            anyhow::anyhow!(
+                "refusing to keep the run records in {} ({what}): {why}; name another \
+                 database with --db",
+                path.display()
+            )
+        };
+        // Links followed: SQLite writes through a link to the file it leads to.
+        match fs::metadata(path) {
+            Ok(meta) if meta.is_dir() => return Err(refuse("it is a directory".into())),
+            Ok(meta) if !meta.is_file() => {
+                let it = special_kind(&meta.file_type());
+                return Err(refuse(format!("it is {it}, not a database file")));
+            }
+            _ => {}
+        }
+        for (option, output) in &self.outputs {
+            if same_file(path, output) {
+                return Err(refuse(format!("it is the output {option} of this run")));
+            }
+        }
+        for input in &self.inputs {
+            if same_file(path, &input.path) {
+                return Err(refuse(format!(
+                    "it is {} this run {}",
+                    input.what,
+                    input.verb()
+                )));
             }
         }
         Ok(())
@@ -198,7 +256,18 @@ fn kind_refusal(path: &Path, kind: &fs::FileType) -> Option<String> {
             "it is a symbolic link (to {target}): the output would replace the link, not \
              the file it leads to; name that file itself"
         ));
-    } else if kind.is_char_device() {
+    } else {
+        special_kind(kind)
+    };
+    Some(format!(
+        "it is {what}, and an output is a regular file renamed into place, which would \
+         replace it"
+    ))
+}
+
+/// What a file that is neither a regular file, a directory nor a link is.
+fn special_kind(kind: &fs::FileType) -> &'static str {
+    if kind.is_char_device() {
         "a character device"
     } else if kind.is_block_device() {
         "a block device"
@@ -208,11 +277,7 @@ fn kind_refusal(path: &Path, kind: &fs::FileType) -> Option<String> {
         "a socket"
     } else {
         "not a regular file"
-    };
-    Some(format!(
-        "it is {what}, and an output is a regular file renamed into place, which would \
-         replace it"
-    ))
+    }
 }
 
 /// The folder `path` is in ("." for a bare name).

@@ -3,10 +3,15 @@
 //! in [`args`], what it may write and how in [`files`], its printing and the terminal's
 //! progress bar in [`terminal`].
 
+mod angles;
 mod args;
+mod fastest;
 mod files;
 mod interrupt;
+mod keys;
+mod measure;
 mod numbers;
+mod runs;
 mod serve;
 mod terminal;
 
@@ -34,7 +39,10 @@ fn main() -> ExitCode {
         )
         .with_writer(std::io::stderr)
         .init();
-    match run(Cli::parse()) {
+    let cli = Cli::parse();
+    let mut record = runs::Recorder::new(&cli);
+    let result = run(cli, &mut record);
+    match record.finish(result) {
         Ok(code) => code,
         Err(e) => {
             terminal::error(&e);
@@ -43,7 +51,7 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(cli: Cli) -> Result<ExitCode> {
+fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
     match cli.command {
         Command::Plan {
             job,
@@ -51,7 +59,16 @@ fn run(cli: Cli) -> Result<ExitCode> {
             output,
             report,
             verify,
-        } => plan(&job, machine.as_deref(), &output, report.as_deref(), verify),
+            fastest,
+        } => plan(
+            &job,
+            machine.as_deref(),
+            &output,
+            report.as_deref(),
+            verify,
+            fastest,
+            record,
+        ),
         Command::Sweep {
             tool:
                 SweepTool::Paraboloid {
@@ -83,6 +100,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             stall_timeout,
             resume_at,
             unlock,
+            feed_override,
         } => {
             let files = if input.extension().is_some_and(|e| e == "toml") {
                 Files::new().job(&input)
@@ -92,6 +110,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             files
                 .input("the machine profile (--machine)", machine.as_deref())
                 .log("the log (--log)", Some(&log))
+                .database(record.database())
                 .check()?;
             let machine = load_machine(machine.as_deref())?;
             let link = Link::resolve(&machine, transport.map(TransportKind::from), port, baud)?;
@@ -103,7 +122,15 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 unlock,
                 progress: None,
             };
-            stream(&input, &machine, &link, options, &log)
+            stream(
+                &input,
+                &machine,
+                &link,
+                options,
+                &log,
+                record,
+                feed_override,
+            )
         }
         Command::DryRun {
             job,
@@ -116,6 +143,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             rx,
             transport,
             controller,
+            feed_override,
         } => {
             Files::new()
                 .output("--report", report.as_deref())
@@ -123,6 +151,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 .input("the program (--program)", program.as_deref())
                 .input("the machine profile (--machine)", machine.as_deref())
                 .log("the log (--log)", log.as_deref())
+                .database(record.database())
                 .check()?;
             let options = DryRunOptions {
                 transport: transport.into(),
@@ -138,14 +167,22 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 log,
                 report,
             };
-            dry_run(paths, options, controller)
+            dry_run(paths, options, controller, record, feed_override)
         }
         Command::Serve {
             machines,
             jobs,
             listen,
             token,
-        } => serve::run(&machines, &jobs, listen, token.as_deref()),
+        } => serve::run(
+            &machines,
+            &jobs,
+            listen,
+            token.as_deref(),
+            cli.db.as_deref(),
+            cli.allow_unrecorded,
+        ),
+        Command::Runs { command } => runs::runs(command, record),
         Command::Log { command } => {
             match command {
                 LogCommand::Summary { log } => {
@@ -176,6 +213,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
             }
             Ok(ExitCode::SUCCESS)
         }
+        Command::Measure(args) => measure::run(args),
+        Command::Angles(args) => angles::run(args),
         Command::Verify {
             program,
             job,
@@ -191,7 +230,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 .input("the machine profile (--machine)", machine.as_deref())
                 .check()?;
             let machine = load_machine(machine.as_deref())?;
-            let job = Job::load(&job)?;
+            let job = fastest::resolve(Job::load(&job)?, &machine, Some(&program))?;
             let text = std::fs::read_to_string(&program)
                 .with_context(|| format!("cannot read {}", program.display()))?;
             let v = whirl::judge::verify::verify(&job, &machine, &text, svg.is_some())
@@ -227,17 +266,26 @@ fn plan(
     output: &Path,
     report: Option<&Path>,
     verify: bool,
+    fastest: bool,
+    record: &mut runs::Recorder,
 ) -> Result<ExitCode> {
     Files::new()
         .output("-o", Some(output))
         .output("--report", report)
         .job(job)
         .input("the machine profile (--machine)", machine)
+        .database(record.database())
         .check()?;
     let machine = load_machine(machine)?;
-    let job = Job::load(job)?;
-    let plan = whirl::plan::plan(&job, &machine)
-        .with_context(|| format!("cannot plan {}", job_name(&job)))?;
+    let mut job = Job::load(job)?;
+    job.cut.auto_feed |= fastest;
+    record.begin(&machine, None, None)?;
+    let plan = match fastest::plan(&mut job, &machine)? {
+        Some(plan) => plan,
+        None => whirl::judge::refine::plan(&job, &machine)
+            .with_context(|| format!("cannot plan {}", job_name(&job)))?,
+    };
+    record.planned(&plan);
     let mut verified = None;
     if verify {
         let v = whirl::judge::verify::verify(&job, &machine, &plan.text, false)
@@ -284,6 +332,9 @@ fn plan(
     if let Some(line) = r.blending_summary() {
         say!("{line}")?;
     }
+    if let Some(line) = r.fastest_summary() {
+        say!("{line}")?;
+    }
     Ok(ExitCode::SUCCESS)
 }
 
@@ -295,16 +346,22 @@ fn stream(
     link: &Link,
     mut options: RunOptions,
     log: &Path,
+    record: &mut runs::Recorder,
+    feed_override: Option<u16>,
 ) -> Result<ExitCode> {
     let name = input.display().to_string();
-    let text = if input.extension().is_some_and(|e| e == "toml") {
-        let job = Job::load(input)?;
-        whirl::plan::plan(&job, machine)
-            .with_context(|| format!("cannot plan {}", job_name(&job)))?
-            .text
+    let (text, cap) = if input.extension().is_some_and(|e| e == "toml") {
+        let job = fastest::resolve(Job::load(input)?, machine, None)?;
+        let plan = whirl::judge::refine::plan(&job, machine)
+            .with_context(|| format!("cannot plan {}", job_name(&job)))?;
+        record.planned(&plan);
+        let cap = transport::control::feed_cap(&plan.report, link.kind());
+        (plan.text, Some(cap))
     } else {
-        std::fs::read_to_string(input).with_context(|| format!("cannot read {name}"))?
+        let text = std::fs::read_to_string(input).with_context(|| format!("cannot read {name}"))?;
+        (text, None)
     };
+    let cap = keys::start_cap(cap, feed_override, input)?;
     let posted = Posted::read(name.as_str(), &text, machine)
         .with_context(|| format!("cannot read {name}"))?;
     posted.check(machine)?;
@@ -315,10 +372,12 @@ fn stream(
         &whirl::console::link_key(link),
         &whirl::console::lock::this_process(),
     )?;
+    record.begin(machine, Some(&posted), Some(link))?;
     let mut log = ExecLog::append(log)?;
     let bar = terminal::progress_bar();
     options.progress = bar.as_ref().map(terminal::Bar::callback);
     let (control, commands) = transport::control();
+    let _keys = keys::arm(&control, cap, feed_override);
     let runtime = runtime()?;
     // The handlers go in before the first byte goes out.
     let interrupts = {
@@ -334,6 +393,7 @@ fn stream(
     if let Some(bar) = bar {
         bar.finish();
     }
+    record.streamed(&outcome);
     let outcome = match outcome {
         Ok(outcome) => outcome,
         Err(error) => anyhow::bail!("{error}{}", resume_hint(error.resume())),
@@ -377,6 +437,8 @@ fn dry_run(
     paths: DryRunPaths,
     mut options: DryRunOptions,
     controller: Controller,
+    record: &mut runs::Recorder,
+    feed_override: Option<u16>,
 ) -> Result<ExitCode> {
     let machine = match (controller, paths.machine.as_deref()) {
         (Controller::Linuxcnc, None) => MachineProfile::builtin_linuxcnc()?,
@@ -390,20 +452,31 @@ fn dry_run(
             machine.dialect
         );
     }
-    let job = Job::load(&paths.job)?;
-    let (name, text) = match &paths.program {
+    let job = fastest::resolve(Job::load(&paths.job)?, &machine, paths.program.as_deref())?;
+    let (name, text, cap) = match &paths.program {
         Some(path) => (
             path.display().to_string(),
             std::fs::read_to_string(path)
                 .with_context(|| format!("cannot read {}", path.display()))?,
+            None,
         ),
-        None => (
-            paths.job.display().to_string(),
-            whirl::plan::plan(&job, &machine)
-                .with_context(|| format!("cannot plan {}", job_name(&job)))?
-                .text,
-        ),
+        None => {
+            let plan = whirl::judge::refine::plan(&job, &machine)
+                .with_context(|| format!("cannot plan {}", job_name(&job)))?;
+            record.planned(&plan);
+            let kind = match controller {
+                Controller::WhirlSim => options.transport,
+                Controller::Linuxcnc => TransportKind::Linuxcnc,
+            };
+            let cap = transport::control::feed_cap(&plan.report, kind);
+            (paths.job.display().to_string(), plan.text, Some(cap))
+        }
     };
+    let cap = keys::start_cap(
+        cap,
+        feed_override,
+        paths.program.as_deref().unwrap_or(&paths.job),
+    )?;
     let posted = Posted::read(name.as_str(), &text, &machine)
         .with_context(|| format!("cannot read {name}"))?;
     match controller {
@@ -412,12 +485,18 @@ fn dry_run(
         }
         Controller::Linuxcnc => posted.check(&machine)?,
     }
+    record.begin(&machine, Some(&posted), None)?;
     let mut log = match &paths.log {
         Some(path) => ExecLog::append(path)?,
         None => ExecLog::discard(),
     };
     let bar = terminal::progress_bar();
     options.progress = bar.as_ref().map(terminal::Bar::callback);
+    let (control, commands) = transport::control();
+    let _keys = keys::arm(&control, cap, feed_override);
+    if control.feed_cap().is_some() {
+        options.commands = Some(commands);
+    }
     let r = match controller {
         Controller::WhirlSim => runtime()?
             .block_on(dry_run::dry_run(&job, &machine, &posted, options, &mut log))
@@ -442,6 +521,7 @@ fn dry_run(
         bar.finish();
     }
     let r = r?;
+    record.dry_ran(&r);
     let json = serde_json::to_string_pretty(&r)?;
     files::write_all(&[(paths.report.as_deref(), &json)])?;
     say!(

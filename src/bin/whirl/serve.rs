@@ -1,6 +1,9 @@
 //! `whirl serve`: the operator's console ([`whirl::console`]) on an address, until a
 //! signal ends it. Refused before anything is read or opened if it would listen beyond
-//! loopback without an access token.
+//! loopback without an access token. Its runs are recorded in the run records (`--db`,
+//! `WHIRL_DB`, else the default): a database it cannot open refuses the start unless
+//! `--allow-unrecorded`, and the records a killed console left running are closed when it
+//! starts again.
 
 use anyhow::{Context, Result};
 use std::net::SocketAddr;
@@ -11,9 +14,11 @@ use std::time::Duration;
 use tokio::signal::unix::{signal, SignalKind};
 use whirl::config::machine::MachineProfile;
 use whirl::console::paths::JobDir;
+use whirl::console::record::Records;
 use whirl::console::registry::Phase;
 use whirl::console::token::{check_listen, Token};
 use whirl::console::{http, machines, Console};
+use whirl::records::{FileSnapshot, Place, Process, Store};
 use whirl::transport::Command;
 
 use crate::terminal::say;
@@ -21,32 +26,52 @@ use crate::terminal::say;
 /// How long a signal waits for the runs it stops to stand.
 const STOP_WAIT: Duration = Duration::from_secs(60);
 
+/// The built-in simulator's profile, as a record keeps it.
+const BUILTIN_SIM: (&str, &str) = (
+    "machine-profiles/sim.toml (built in)",
+    include_str!("../../../machine-profiles/sim.toml"),
+);
+
 /// The console of `profiles` (the built-in simulator's if none) and the jobs under
-/// `jobs`, on `listen`.
+/// `jobs`, on `listen`, recording its runs in `db` (`--db`; else `WHIRL_DB` or the
+/// default).
 pub(crate) fn run(
     profiles: &[PathBuf],
     jobs: &std::path::Path,
     listen: SocketAddr,
     token: Option<&str>,
+    db: Option<&str>,
+    allow_unrecorded: bool,
 ) -> Result<ExitCode> {
     let token = token.map(Token::new).transpose()?;
     check_listen(listen, token.as_ref())?;
+    let mut files = Vec::new();
     let profiles = if profiles.is_empty() {
-        vec![MachineProfile::builtin_sim()?]
+        let sim = MachineProfile::builtin_sim()?;
+        files.push(FileSnapshot::of(BUILTIN_SIM.0, BUILTIN_SIM.1.as_bytes()));
+        vec![sim]
     } else {
-        profiles
-            .iter()
-            .map(|p| MachineProfile::load(p))
-            .collect::<Result<_, _>>()?
+        let mut loaded = Vec::new();
+        for path in profiles {
+            loaded.push(MachineProfile::load(path)?);
+            let bytes = std::fs::read(path)
+                .with_context(|| format!("the machine profile {}", path.display()))?;
+            files.push(FileSnapshot::of(path.display().to_string(), &bytes));
+        }
+        loaded
     };
+    let machine_files = profiles.iter().map(|p| p.name.clone()).zip(files).collect();
     let machines = machines(profiles).map_err(anyhow::Error::msg)?;
     let jobs = JobDir::open(jobs)
         .with_context(|| format!("the jobs folder (--jobs) {}", jobs.display()))?;
-    let console = Arc::new(Console::new(machines, jobs, token));
+    let mut console = Console::new(machines, jobs, token);
+    console.machine_files = machine_files;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()?;
-    runtime.block_on(async {
+    runtime.block_on(async move {
+        console.records = records(db, allow_unrecorded).await?;
+        let console = Arc::new(console);
         let listener = tokio::net::TcpListener::bind(listen)
             .await
             .with_context(|| format!("cannot listen on {listen} (--listen)"))?;
@@ -101,4 +126,42 @@ async fn stop_runs(console: &Console) {
             running(console)
         );
     }
+}
+
+/// The run records the console keeps, opened (and the runs a console or command killed
+/// before left running closed from their logs, said on standard error); `None` if they
+/// cannot be opened and `allow_unrecorded` lets the console serve without them.
+async fn records(db: Option<&str>, allow_unrecorded: bool) -> Result<Option<Records>> {
+    let opened = async {
+        let place = Place::resolve(db)?;
+        let store = Store::open(&place).await?;
+        Ok::<_, anyhow::Error>(Records { place, store })
+    }
+    .await;
+    let records = match opened {
+        Ok(records) => records,
+        Err(e) if allow_unrecorded => {
+            eprintln!("warning: {e:#}: the console's runs are not recorded (--allow-unrecorded)");
+            return Ok(None);
+        }
+        Err(e) => {
+            return Err(e.context(
+                "whirl serve records every run it starts and could not open the run records; \
+                 --allow-unrecorded serves without them",
+            ))
+        }
+    };
+    match records.store.close_orphans(&Process::current()).await {
+        Ok(closed) => {
+            for (id, outcome) in closed {
+                eprintln!(
+                    "warning: run {id} in {} was left running by a process that is gone: \
+                     closed as {outcome} (whirl runs show {id})",
+                    records.store.place()
+                );
+            }
+        }
+        Err(e) => eprintln!("warning: {e}"),
+    }
+    Ok(Some(records))
 }

@@ -15,6 +15,7 @@ function show() {
   for (const a of document.querySelectorAll("nav a")) {
     a.classList.toggle("current", a.id === "nav-" + page);
   }
+  if (page === "history") history();
 }
 window.addEventListener("hashchange", show);
 
@@ -101,6 +102,7 @@ function render() {
   $("btn-resume").disabled = !running;
   $("btn-stop").disabled = !running;
   $("run-start").disabled = running;
+  $("run-stream").disabled = running;
   if (!v) return;
   $("run-title").textContent = "#" + v.id + " " + v.job + " on " + v.machine + " over " +
     v.transport + " at " + v.time_scale + "×" + (v.resumed_at ? ", resumed at line " + v.resumed_at : "") +
@@ -142,6 +144,86 @@ async function groove(v) {
   }
 }
 
+// History: the run records searched in the server (its database), fetched when the page
+// is shown, searched, or a run ends; one run's whole record on a click.
+let ended = new Set();
+
+function historyQuery() {
+  const q = new URLSearchParams();
+  for (const key of ["job", "machine", "since", "until", "outcome"]) {
+    const value = $("history-" + key).value.trim();
+    if (value) q.set(key, value);
+  }
+  return q.toString();
+}
+
+async function history() {
+  $("history-error").textContent = "";
+  try {
+    const runs = await api("/api/history?" + historyQuery());
+    const body = $("history-table").querySelector("tbody");
+    body.replaceChildren();
+    for (const r of runs) {
+      const row = body.insertRow();
+      row.dataset.run = r.id;
+      const cells = [r.id, r.kind, r.outcome, r.started_at.replace("T", " ").replace("Z", ""),
+        r.machine || "–", r.job || r.program || "–", r.transport || "–",
+        r.resume_at === null ? "–" : r.resume_at, r.reason || ""];
+      cells.forEach((c, i) => {
+        const cell = row.insertCell();
+        cell.textContent = c;
+        if (i === 2) cell.className = "outcome-" + r.outcome;
+      });
+      row.onclick = () => historyRun(r.id);
+    }
+  } catch (e) {
+    $("history-error").textContent = e.message;
+  }
+}
+
+async function historyRun(id) {
+  $("history-error").textContent = "";
+  try {
+    const r = await api("/api/history/" + id);
+    for (const row of $("history-table").querySelectorAll("tbody tr")) {
+      row.classList.toggle("chosen", row.dataset.run === String(id));
+    }
+    $("history-run-title").textContent = "Run " + r.id + ": " + r.kind + ", " + r.outcome;
+    const figures = [
+      ["Started", r.started_at], ["Ended", r.ended_at], ["Why", r.reason],
+      ["Machine", r.machine && r.machine + (r.machine_file ? " (" + r.machine_file.path + ", sha256 " + r.machine_file.sha256.slice(0, 12) + "…)" : "")],
+      ["Job", r.job_file && r.job_file.path + " (sha256 " + r.job_file.sha256.slice(0, 12) + "…)"],
+      ["Program", r.program_id && r.program_id.name + ": " + r.program_id.lines + " lines (sha256 " + r.program_id.sha256.slice(0, 12) + "…)"],
+      ["Transport", r.transport && r.transport + (r.port ? " to " + r.port : " (dry run on the simulator)")],
+      ["Measured", r.measured && (r.measured.within_delta ? "within Δ" : "not within Δ") + ": overcut " + mm(r.measured.max_overcut_mm) +
+        " mm, undercut " + mm(r.measured.max_undercut_mm) + " mm (Δ " + r.measured.delta_mm + " mm)"],
+      ["Resumed at", r.resume_from && "line " + r.resume_from + (r.resumes ? ", continuing run " + r.resumes : "")],
+      ["Resume at", r.resume_at && "line " + r.resume_at + (r.possibly_run_to ? " (to line " + r.possibly_run_to + " may have run)" : "")],
+      ["Host", r.host + ", process " + r.pid],
+      ["Log", r.log && r.log.path],
+    ].filter(([, v]) => v !== null && v !== undefined && v !== "");
+    $("history-run-figures").replaceChildren(...figures.flatMap(([k, v]) => [
+      Object.assign(document.createElement("dt"), { textContent: k }),
+      Object.assign(document.createElement("dd"), { textContent: v, id: "history-run-" + k.toLowerCase().replace(" ", "-") }),
+    ]));
+    $("history-run-notes").replaceChildren(...r.notes.map((n) => Object.assign(document.createElement("li"), {
+      textContent: (n.at || "") + " " + n.kind + (n.code !== null ? " " + n.code : "") +
+        (n.line !== null ? " at line " + n.line : "") + ": " + n.text,
+    })));
+    $("history-run").hidden = false;
+  } catch (e) {
+    $("history-error").textContent = e.message;
+  }
+}
+
+// A run that has just ended changes the history: fetched again if it is shown.
+function historyOnEnd() {
+  const now = new Set(views.filter((v) => v.phase === "ended").map((v) => v.machine + "#" + v.id));
+  const fresh = [...now].some((k) => !ended.has(k));
+  ended = now;
+  if (fresh && location.hash === "#history") history();
+}
+
 async function press(button) {
   $("run-error").textContent = "";
   try {
@@ -174,6 +256,15 @@ async function main() {
       $("run-error").textContent = e.message;
     }
   };
+  $("run-stream").onclick = async () => {
+    $("run-error").textContent = "";
+    try {
+      await api("/api/runs", { machine: $("run-machine").value, job: $("run-job").value, stream: true });
+    } catch (e) {
+      $("run-error").textContent = e.message;
+    }
+  };
+  $("history-form").onsubmit = (event) => { event.preventDefault(); history(); };
   $("btn-hold").onclick = () => press("hold");
   $("btn-resume").onclick = () => press("resume");
   $("btn-stop").onclick = () => press("stop");
@@ -183,6 +274,7 @@ async function main() {
     views = JSON.parse(event.data);
     $("link-state").textContent = "live";
     render();
+    historyOnEnd();
   });
   events.onerror = () => { $("link-state").textContent = "reconnecting…"; };
 }

@@ -89,12 +89,12 @@ pub mod object {
 /// microseconds whose significant digits fit 255).
 pub fn interpolation_time_period(period: std::time::Duration) -> Option<(u8, i8)> {
     let mut value = period.as_micros();
-    if value == 0 || period.subsec_nanos() % 1000 != 0 {
+    if value == 0 || !period.subsec_nanos().is_multiple_of(1000) {
         return None;
     }
     let mut index = -6i8;
     while value > 255 {
-        if value % 10 != 0 || index == 0 {
+        if !value.is_multiple_of(10) || index == 0 {
             return None;
         }
         value /= 10;

@@ -15,6 +15,8 @@
 //! - [`resume`]: the modal state a program is in at a line, and the preamble that restores
 //!   it (units, distance and feed modes, the G92 offset of C, the spindle).
 //! - [`codes`]: what grbl's and grblHAL's error and alarm codes mean.
+//! - [`feed_override`]: the feed override's real-time bytes, one step at a time, read back
+//!   from `Ov:`.
 //!
 //! # Example
 //!
@@ -37,6 +39,7 @@
 //! ```
 
 pub mod codes;
+pub mod feed_override;
 pub mod response;
 pub mod resume;
 pub mod streamer;

@@ -149,6 +149,7 @@ use std::collections::VecDeque;
 use std::time::Duration;
 
 use super::codes::{alarm_message, error_message};
+use super::feed_override::{self, Change, FeedOverride};
 use super::response::{parse_response, BuildOptions, LineBuffer, MachineState, Response, Status};
 use super::resume::resume_preamble;
 
@@ -274,6 +275,8 @@ pub struct Streamer {
     last_poll: Option<Duration>,
     last_status: Option<Status>,
     last_wco: Option<Vec<f64>>,
+    /// The feed override asked and what `Ov:` says.
+    feed: FeedOverride,
 }
 
 impl Streamer {
@@ -377,6 +380,7 @@ impl Streamer {
             last_poll: None,
             last_status: None,
             last_wco: None,
+            feed: FeedOverride::default(),
             config,
         };
         if !streamer.config.wait_for_banner {
@@ -473,6 +477,23 @@ impl Streamer {
     pub fn resume(&mut self) {
         self.realtime.push(realtime::CYCLE_START);
         self.hold_requested = false;
+    }
+
+    /// Feed override: run at `percent` of the programmed feed (grbl takes 10–200; the
+    /// caller checks the cap). The real-time bytes go out one at a time, each once a status
+    /// report's `Ov:` shows the one before took ([`super::feed_override`]), so it takes
+    /// status polling; [`Event::FeedOverride`] says each value reached, and
+    /// [`Event::FeedOverrideNotTaken`] that the controller does not report `Ov:` or did
+    /// not take a byte.
+    pub fn feed_override(&mut self, percent: u16) {
+        if let Some(byte) = self.feed.ask(percent) {
+            self.realtime.push(byte);
+        }
+    }
+
+    /// The feed override the controller last reported, percent.
+    pub fn reported_feed_override(&self) -> Option<u16> {
+        self.feed.reported()
     }
 
     /// Soft reset (0x18): the controller stops at once (an alarm if it was moving), drops
@@ -958,12 +979,24 @@ impl Streamer {
                 }
             }
         }
+        let (byte, change) = self.feed.on_report(feed_override::reported(&status.other));
+        self.realtime.extend(byte);
         let motion_done = self.motion_finished(&status);
         if let Some(wco) = &status.wco {
             self.last_wco = Some(wco.clone());
         }
         self.last_status = Some(status.clone());
         self.events.push_back(Event::Status(status));
+        match change {
+            Some(Change::Reported(percent)) => {
+                self.events.push_back(Event::FeedOverride { percent });
+            }
+            Some(Change::NotTaken { asked, reported }) => {
+                self.events
+                    .push_back(Event::FeedOverrideNotTaken { asked, reported });
+            }
+            None => {}
+        }
         if motion_done {
             self.events.push_back(Event::MotionDone);
         }

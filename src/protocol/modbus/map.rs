@@ -73,6 +73,9 @@ pub mod reg {
     pub const HEAD: u16 = 33;
     /// `WATCHDOG`.
     pub const WATCHDOG: u16 = 34;
+    /// `FEED_OVERRIDE`, percent of the programmed feed, 10–200 (not in the status block
+    /// read: the bridge writes it, and the echo confirms it).
+    pub const FEED_OVERRIDE: u16 = 40;
     /// Registers in the status and control blocks read together (16–34).
     pub const STATUS_LEN: u16 = 19;
 

@@ -232,6 +232,17 @@ pub enum WriterEvent {
     Stopped,
     /// The stream cannot go on.
     Failed(WriterError),
+    /// `FEED_OVERRIDE` was written and echoed: the controller runs at this percent of the
+    /// programmed feed.
+    FeedOverride(u16),
+    /// The controller refused the `FEED_OVERRIDE` write: exception 02, a map without the
+    /// register, or another exception. The stream goes on at the override it had.
+    FeedOverrideRefused {
+        /// The percent asked.
+        percent: u16,
+        /// The answer.
+        exception: Exception,
+    },
 }
 
 /// Why a stream failed.
@@ -322,6 +333,7 @@ enum Purpose {
     Slot,
     Head(u16),
     Watchdog,
+    FeedOverride(u16),
 }
 
 /// When the outstanding request goes (again).
@@ -406,6 +418,8 @@ pub struct RingWriter {
     /// The caller's commands, as control words still to write: each edge followed by the
     /// levels alone, so that the next command is a new edge.
     commands: VecDeque<u16>,
+    /// A feed override asked and not yet written.
+    feed_override: Option<u16>,
     next_status: Duration,
     next_watchdog: Duration,
     watchdog: u16,
@@ -439,6 +453,7 @@ impl RingWriter {
             last_seen: None,
             standing: false,
             commands: VecDeque::new(),
+            feed_override: None,
             next_status: Duration::ZERO,
             next_watchdog: Duration::ZERO,
             watchdog: 0,
@@ -484,19 +499,24 @@ impl RingWriter {
         let Some(mut o) = self.outstanding.take() else {
             return self.fail(WriterError::Unexpected("a response"));
         };
-        match result {
-            Ok(response) => self.answered(o, response),
-            Err(Exception::ServerDeviceBusy) => {
+        match (result, o.purpose) {
+            (Ok(response), _) => self.answered(o, response),
+            (Err(Exception::ServerDeviceBusy), _) => {
                 o.send = Send::NotBefore(self.now + self.options.poll_interval);
                 self.outstanding = Some(o);
             }
-            Err(Exception::ServerDeviceFailure)
+            // Not a reason to end the stream: it goes on at the override it had.
+            (Err(exception), Purpose::FeedOverride(percent)) => {
+                self.events
+                    .push_back(WriterEvent::FeedOverrideRefused { percent, exception });
+            }
+            (Err(Exception::ServerDeviceFailure), _)
                 if matches!(self.phase, Phase::Stream | Phase::Stopping { .. }) =>
             {
                 // A refused slot (or an alarm): the status says which.
                 self.refused = Some(o.request);
             }
-            Err(exception) => self.fail(WriterError::Exception {
+            (Err(exception), _) => self.fail(WriterError::Exception {
                 request: o.request,
                 exception,
             }),
@@ -536,6 +556,17 @@ impl RingWriter {
         self.caller_held = false;
         self.progressed = self.now;
         self.command(control::RESUME);
+    }
+
+    /// Feed override (`FEED_OVERRIDE`, register 40): the controller runs at `percent` of
+    /// the programmed feed (10–200; the caller checks the cap). Written once streaming, ahead
+    /// of any slot; the echo confirms it ([`WriterEvent::FeedOverride`]); a map without the
+    /// register answers exception 02 ([`WriterEvent::FeedOverrideRefused`]) and the stream
+    /// goes on. Only the latest value asked is written.
+    pub fn feed_override(&mut self, percent: u16) {
+        if self.phase != Phase::Finished {
+            self.feed_override = Some(percent);
+        }
     }
 
     /// Ends the stream with the machine held where it is (see the module docs): once the
@@ -690,6 +721,15 @@ impl RingWriter {
         }
         if let Some(edge) = self.commands.pop_front() {
             return Some(control_write(self.levels() | edge));
+        }
+        if let Some(value) = self.feed_override.take() {
+            return Some((
+                Request::WriteSingle {
+                    address: reg::FEED_OVERRIDE,
+                    value,
+                },
+                Purpose::FeedOverride(value),
+            ));
         }
         if self.staged {
             let value = (self.head + 1) % slots;
@@ -861,6 +901,9 @@ impl RingWriter {
                 self.progressed = self.now;
             }
             Purpose::Watchdog => {}
+            Purpose::FeedOverride(percent) => {
+                self.events.push_back(WriterEvent::FeedOverride(percent));
+            }
         }
     }
 

@@ -1211,6 +1211,7 @@ fn golden_identification_is_served() {
                 word_order: order,
                 watchdog_timeout_ms: u16_of(&c["watchdog_timeout_ms"]),
                 max_segment_rate: u16_of(&c["max_segment_rate"]),
+                feed_override: true,
             },
         );
         let expected = registers_of(&c["registers"]);
@@ -1442,4 +1443,42 @@ fn golden_head_writes() {
     assert_eq!(head_write(&mut b, wraps), expect(wraps));
     assert_eq!(reg(&mut b, HEAD), u16_of(&wraps["new_head"]));
     assert_eq!(b.queue.len(), 2, "the dwell in flight and the feed");
+}
+
+#[test]
+fn feed_override_is_a_register_of_percent_within_grbls_range() {
+    let mut b = bank(8);
+    assert_eq!(reg(&mut b, FEED_OVERRIDE), 100);
+    assert!(write(&mut b, FEED_OVERRIDE, 150).is_ok());
+    assert_eq!(reg(&mut b, FEED_OVERRIDE), 150);
+    assert_eq!(b.controller().feed_override(), 150);
+    // Outside 10–200: refused, and nothing changes.
+    assert_eq!(
+        write(&mut b, FEED_OVERRIDE, 9),
+        Err(Exception::IllegalDataValue)
+    );
+    assert_eq!(
+        write(&mut b, FEED_OVERRIDE, 201),
+        Err(Exception::IllegalDataValue)
+    );
+    assert_eq!(b.controller().feed_override(), 150);
+    assert!(write(&mut b, FEED_OVERRIDE, 10).is_ok());
+    assert_eq!(b.controller().feed_override(), 10);
+    // A map built before the register: exception 02 both ways.
+    let mut old = bank_on(
+        &machine(),
+        BankOptions {
+            feed_override: false,
+            ..BankOptions::default()
+        },
+    );
+    assert_eq!(
+        write(&mut old, FEED_OVERRIDE, 120),
+        Err(Exception::IllegalDataAddress)
+    );
+    assert_eq!(
+        read(&mut old, FEED_OVERRIDE, 1),
+        Err(Exception::IllegalDataAddress)
+    );
+    assert_eq!(old.controller().feed_override(), 100);
 }

@@ -278,6 +278,12 @@ pub enum Event {
     },
     /// The caller's resume has brought the path back to speed.
     Resumed,
+    /// The set-points' clock has reached the feed override asked: the path runs at this
+    /// percent of the programmed feed.
+    FeedOverride {
+        /// Percent.
+        percent: u16,
+    },
     /// Every drive is at its final target.
     Settled,
     /// The job ran to its end; the drives are disabled.
@@ -345,6 +351,11 @@ impl std::fmt::Display for Event {
                 "held after {sent} set-points: the drives stand on the path"
             ),
             Event::Resumed => write!(f, "resumed: the set-points run at speed again"),
+            Event::FeedOverride { percent } => write!(
+                f,
+                "feed override {percent} %: the set-points run at {percent} % of the \
+                 programmed feed"
+            ),
             Event::Settled => write!(f, "every drive at its final target"),
             Event::Finished => write!(f, "finished; the drives are disabled"),
             Event::Stopped { reason } => write!(f, "stopped: {reason}"),

@@ -178,8 +178,15 @@ pub struct Session {
     /// Where along the set-points the path is, in cycles: `k` is set-point `k` (1-based)
     /// reached, between two whole numbers the straight move between them.
     position: f64,
-    /// The path's speed, set-points a cycle: 1 running, 0 held.
+    /// The path's speed, set-points a cycle: the feed override running (1 at 100 %), 0
+    /// held.
     speed: f64,
+    /// The feed override, as set-points a cycle: the speed the path runs at, unheld.
+    feed: f64,
+    /// A feed override asked whose speed the path has not reached yet, percent.
+    feed_asked: Option<u16>,
+    /// A resume whose speed the path has not reached yet.
+    resuming: bool,
     /// The caller asked for a hold (and no resume since).
     held: bool,
     /// A gentle stop ([`Session::stop_held`]) is under way: the job ends stopped.
@@ -275,6 +282,9 @@ impl Session {
             sent: 0,
             position: 0.0,
             speed: 1.0,
+            feed: 1.0,
+            feed_asked: None,
+            resuming: false,
             held: false,
             interrupted: false,
             stand_by: None,
@@ -330,8 +340,18 @@ impl Session {
     /// gentle stop under way is not undone.
     pub fn resume(&mut self) {
         if !self.interrupted {
+            self.resuming |= self.held;
             self.held = false;
         }
+    }
+
+    /// Feed override: the set-points' clock runs at `percent` of the programmed feed (the
+    /// bridge makes the set-points, so the override is its own interpolation's: a cycle
+    /// advances the path by `percent`/100 set-points), reached over the hold ramp's slope
+    /// and announced by [`Event::FeedOverride`] once reached. The caller checks the cap.
+    pub fn feed_override(&mut self, percent: u16) {
+        self.feed = f64::from(percent) / 100.0;
+        self.feed_asked = Some(percent);
     }
 
     /// Stops the job gently for `reason` (see the module docs, "Stopping"): the path held
@@ -923,16 +943,23 @@ impl Session {
         }
         let step = self.ramp_step();
         let was = self.speed;
-        self.speed = if self.held {
-            (self.speed - step).max(0.0)
+        let target = if self.held { 0.0 } else { self.feed };
+        self.speed = if self.speed > target {
+            (self.speed - step).max(target)
         } else {
-            (self.speed + step).min(1.0)
+            (self.speed + step).min(target)
         };
         if self.speed == 0.0 && was > 0.0 {
             self.events.push(Event::Held { sent: self.sent });
         }
-        if self.speed == 1.0 && was < 1.0 {
-            self.events.push(Event::Resumed);
+        if !self.held && self.speed == target {
+            if self.resuming && was < target {
+                self.events.push(Event::Resumed);
+            }
+            self.resuming = false;
+            if let Some(percent) = self.feed_asked.take() {
+                self.events.push(Event::FeedOverride { percent });
+            }
         }
         // Up to the next junction at most: the step stays on one straight move.
         let next = self

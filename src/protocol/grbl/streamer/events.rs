@@ -201,6 +201,21 @@ pub enum Event {
     /// An `ok`/`error` with no line waiting for it, or output that is none of grbl's
     /// message kinds, as received.
     Unrecognized(String),
+    /// A status report's `Ov:` shows a feed override other than the last one seen (or the
+    /// first one), percent: the controller runs at it now.
+    FeedOverride {
+        /// Percent of the programmed feed.
+        percent: u16,
+    },
+    /// A feed override asked ([`Streamer::feed_override`](super::Streamer::feed_override))
+    /// was not reached: the controller does not report `Ov:` (`reported` is `None`), or it
+    /// did not take the last byte.
+    FeedOverrideNotTaken {
+        /// Asked, percent.
+        asked: u16,
+        /// What the controller last reported, percent.
+        reported: Option<u16>,
+    },
 }
 
 /// Progress through the program.

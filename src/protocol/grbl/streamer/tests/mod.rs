@@ -2,6 +2,7 @@
 //! hand: the fixtures here, the tests by topic in the sibling files.
 
 mod connect;
+mod feed_override;
 mod interrupts;
 mod motion;
 mod properties;

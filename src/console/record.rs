@@ -1,0 +1,191 @@
+//! The console's runs in the run records ([`crate::records`]), as the command line records
+//! its own: a record opened `running` before anything is sent, holds and resumes noted as
+//! they are pressed, the record closed with the outcome, where to resume, the alarms and
+//! the measured error.
+//!
+//! A console run's kind is [`Kind::Serve`]; a dry run has no port (the simulator is the
+//! console's own), a stream names where it went. Each run opens the records on its own
+//! thread's runtime (the database's connections live where they are used); the server
+//! keeps one opening for the history page and the buttons' notes.
+
+use super::registry::{Measured, ResumePoint};
+use crate::log::{Event, Record};
+use crate::records::from_log::LogFacts;
+use crate::records::{
+    Ending, FileSnapshot, Kind, NewRun, Note, NoteKind, Outcome, Place, ProgramId, RecordError,
+    RunId, Store,
+};
+use crate::transport::Posted;
+
+/// Where a console records its runs.
+#[derive(Debug, Clone)]
+pub struct Records {
+    /// The database, for each run's own opening.
+    pub place: Place,
+    /// The server's opening: the history, the buttons' notes.
+    pub store: Store,
+}
+
+/// What a console run's record holds from its start.
+pub struct Start<'a> {
+    /// The job file as read.
+    pub job: Option<FileSnapshot>,
+    /// The machine profile file as read.
+    pub machine: Option<FileSnapshot>,
+    /// The machine profile's name.
+    pub machine_name: &'a str,
+    /// The program.
+    pub posted: &'a Posted,
+    /// The plan report (JSON).
+    pub plan_report: Option<String>,
+    /// How it goes (`serial`, `modbus-tcp`, …).
+    pub transport: &'a str,
+    /// Where it goes, for a stream to a machine; `None` for a dry run.
+    pub port: Option<String>,
+    /// The line (1-based) it resumes at.
+    pub resume_from: Option<usize>,
+}
+
+/// The record a console run opens.
+pub fn new_run(start: Start<'_>) -> NewRun {
+    let mut run = NewRun::new(Kind::Serve);
+    run.job = start.job;
+    run.machine = start.machine;
+    run.machine_name = Some(start.machine_name.to_owned());
+    run.program = Some(ProgramId::of(
+        start.posted.name.clone(),
+        &start.posted.lines.join("\n"),
+    ));
+    run.plan_report = start.plan_report;
+    run.transport = Some(start.transport.to_owned());
+    run.port = start.port;
+    run.resume_from = start.resume_from;
+    run
+}
+
+/// Opens the records at `place` on the caller's runtime and the run's record in them.
+pub async fn begin(place: &Place, run: &NewRun) -> Result<(Store, RunId), RecordError> {
+    let store = Store::open(place).await?;
+    let id = store.begin(run).await?;
+    Ok((store, id))
+}
+
+/// A hold or a resume pressed at `line`, as its record notes it.
+pub fn pressed(kind: NoteKind, line: Option<usize>) -> Note {
+    Note {
+        line,
+        ..Note::new(
+            kind,
+            match kind {
+                NoteKind::Hold => "held from the console",
+                _ => "resumed from the console",
+            },
+        )
+    }
+}
+
+/// Adds to `ending` what a console knows beside the run's own result: the controller's
+/// alarms in its log (when the result noted none), the resume point it offers, and the
+/// error measured of the cut.
+pub fn complete(
+    ending: &mut Ending,
+    log: &[Record],
+    resume: Option<&ResumePoint>,
+    measured: Option<Measured>,
+) {
+    let alarms = log
+        .iter()
+        .filter_map(|r| match &r.event {
+            Event::Alarm { code, message } => Some((*code, message.clone())),
+            _ => None,
+        })
+        .collect();
+    ending.add_log(&LogFacts {
+        alarms,
+        ..LogFacts::default()
+    });
+    if ending.outcome != Outcome::Completed {
+        if let Some(point) = resume {
+            ending.resume_at = Some(point.line);
+            ending.possibly_run_to = point.possibly_run_to;
+        }
+    }
+    if let Some(m) = measured {
+        ending.measured = Some(crate::records::Measured {
+            max_overcut_mm: m.max_overcut_mm,
+            max_undercut_mm: m.max_undercut_mm,
+            delta_mm: m.delta_mm,
+            within_delta: m.within_delta && ending.outcome == Outcome::Completed,
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::machine::MachineProfile;
+
+    fn posted() -> Posted {
+        let machine = MachineProfile::builtin_sim().unwrap();
+        Posted::read("p.nc", "G0 X1\nG1 Z-1 F100\n", &machine).unwrap()
+    }
+
+    #[test]
+    fn a_console_run_is_recorded_as_a_serve_of_its_program() {
+        let posted = posted();
+        let run = new_run(Start {
+            job: Some(FileSnapshot::of("jobs/t.toml", b"x")),
+            machine: None,
+            machine_name: "lathe",
+            posted: &posted,
+            plan_report: None,
+            transport: "modbus-tcp",
+            port: None,
+            resume_from: Some(2),
+        });
+        assert_eq!(run.kind, Kind::Serve);
+        assert_eq!(run.machine_name.as_deref(), Some("lathe"));
+        assert_eq!(run.transport.as_deref(), Some("modbus-tcp"));
+        assert_eq!(run.resume_from, Some(2));
+        // The program by the hash of its lines, each ended by a newline.
+        assert_eq!(
+            run.program.unwrap().sha256,
+            crate::records::sha256_hex(b"G0 X1\nG1 Z-1 F100\n")
+        );
+    }
+
+    #[test]
+    fn a_stopped_run_resumes_at_the_offered_line_with_its_alarms_and_never_within_delta() {
+        let alarm = Record {
+            t: 1.0,
+            event: Event::Alarm {
+                code: 3,
+                message: "reset while in motion".into(),
+            },
+        };
+        let point = ResumePoint {
+            line: 40,
+            possibly_run_to: Some(44),
+        };
+        let measured = Measured {
+            max_overcut_mm: 0.001,
+            max_undercut_mm: 0.5,
+            delta_mm: 0.01,
+            within_delta: true,
+        };
+        let mut stopped = Ending::new(Outcome::Stopped);
+        complete(&mut stopped, &[alarm], Some(&point), Some(measured));
+        assert_eq!(
+            (stopped.resume_at, stopped.possibly_run_to),
+            (Some(40), Some(44))
+        );
+        assert_eq!(stopped.notes[0].code, Some(3));
+        // Half a groove is not a part within Δ.
+        assert!(!stopped.measured.unwrap().within_delta);
+        let mut done = Ending::new(Outcome::Completed);
+        complete(&mut done, &[], Some(&point), Some(measured));
+        assert_eq!(done.resume_at, None);
+        assert!(done.measured.unwrap().within_delta);
+        assert!(done.notes.is_empty());
+    }
+}

@@ -1,0 +1,468 @@
+//! Run records: every `plan`, `dry-run`, `stream` (and, later, `serve`) run in a real
+//! database, so that a shop can say months later which program cut which part, on which
+//! machine, with which alarms and resumes.
+//!
+//! The executed-path log ([`crate::log`]) stays the raw record of a run; the database
+//! indexes the runs: what went in (the job and machine files' contents and hashes, the
+//! program's hash, the plan report), how each ended (outcome, reason, alarms, the stop and
+//! where it resumes, a dry run's measured error) and where its log is. A record is opened
+//! `running` before anything is sent and closed with the outcome; one its process never
+//! closed (killed outright) is closed on the next opening of the database, from what its
+//! log says ([`Store::close_orphans`], [`process`], [`from_log`]).
+//!
+//! - [`store`]: the database, SQLite (one file, the default) or PostgreSQL (a shop's
+//!   server) through the same code and the same SQL, migrations embedded in the binary.
+//! - [`process`]: whose a running record is and whether that process still runs.
+//! - [`from_log`]: what a run's log says of it.
+//! - [`ending`]: how a run ended, from a stream's outcome, a dry run's report, its log.
+//! - [`time`]: the records' UTC times.
+//!
+//! The store's calls are async, for a server that records the runs it starts while it
+//! serves pages; the command line drives them from a runtime of its own. `docs/records.md`
+//! has the schema, the default place and the interruption rule.
+
+pub mod ending;
+pub mod from_log;
+pub mod process;
+pub mod store;
+pub mod time;
+
+use std::path::PathBuf;
+
+use serde::Serialize;
+use sha2::{Digest, Sha256};
+
+pub use process::Process;
+pub use store::{Place, RecordError, Store};
+pub use time::Timestamp;
+
+/// A record's number, from 1.
+pub type RunId = i64;
+
+/// What kind of run a record is of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Kind {
+    /// `whirl plan`: a program written.
+    Plan,
+    /// `whirl dry-run`: a job run on a simulated controller.
+    DryRun,
+    /// `whirl stream`: a program sent to a machine.
+    Stream,
+    /// A run started from `whirl serve`'s console.
+    Serve,
+}
+
+/// How a run ended, or that it has not.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Outcome {
+    /// Its process is at it (or was killed and no one has opened the database since).
+    Running,
+    /// Every line run (a dry run: every line run, whatever it measured).
+    Completed,
+    /// Stopped short by the machine, the operator or a guard: an alarm, a hold that ended
+    /// the run, a signal; it says where to resume.
+    Stopped,
+    /// It could not be carried out: an error of the bridge, the link or the input.
+    Failed,
+    /// Its process ended without closing the record (killed, crashed, the host down).
+    Interrupted,
+}
+
+/// What happened to a run as it went.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum NoteKind {
+    /// The controller raised an alarm (its code in [`Note::code`]).
+    Alarm,
+    /// A feed hold.
+    Hold,
+    /// A resume from a hold.
+    Resume,
+    /// The run stopped: [`Note::line`] is where it resumes.
+    Stop,
+}
+
+macro_rules! words {
+    ($type:ty { $($variant:ident = $word:literal),* $(,)? }) => {
+        impl $type {
+            /// The word the database holds and the command line takes.
+            pub fn as_str(self) -> &'static str {
+                match self {
+                    $(<$type>::$variant => $word,)*
+                }
+            }
+
+            /// The value a word names, if any.
+            pub fn from_word(word: &str) -> Option<$type> {
+                match word {
+                    $($word => Some(<$type>::$variant),)*
+                    _ => None,
+                }
+            }
+        }
+
+        impl std::fmt::Display for $type {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.pad(self.as_str())
+            }
+        }
+    };
+}
+
+words!(Kind {
+    Plan = "plan",
+    DryRun = "dry-run",
+    Stream = "stream",
+    Serve = "serve",
+});
+words!(Outcome {
+    Running = "running",
+    Completed = "completed",
+    Stopped = "stopped",
+    Failed = "failed",
+    Interrupted = "interrupted",
+});
+words!(NoteKind {
+    Alarm = "alarm",
+    Hold = "hold",
+    Resume = "resume",
+    Stop = "stop",
+});
+
+/// A file a run read, as it read it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FileSnapshot {
+    /// Where it was (a built-in profile: its name, "(built in)").
+    pub path: String,
+    /// SHA-256 of its bytes, lower-case hex.
+    pub sha256: String,
+    /// Its text.
+    pub text: String,
+}
+
+impl FileSnapshot {
+    /// The file called `path` whose bytes are `bytes` (not UTF-8 ones kept lossily; the
+    /// hash is of the bytes).
+    pub fn of(path: impl Into<String>, bytes: &[u8]) -> FileSnapshot {
+        FileSnapshot {
+            path: path.into(),
+            sha256: sha256_hex(bytes),
+            text: String::from_utf8_lossy(bytes).into_owned(),
+        }
+    }
+}
+
+/// The program a run sent or wrote, by name and hash: the same text cut twice has the
+/// same hash, whatever it was called.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ProgramId {
+    /// The program file, or the job it was planned from.
+    pub name: String,
+    /// SHA-256 of its text, lower-case hex.
+    pub sha256: String,
+    /// Its number of lines.
+    pub lines: usize,
+}
+
+impl ProgramId {
+    /// The program `text` called `name`. The hash is of its lines, each ended by a
+    /// newline: a program saved with CRLF line ends, or without a newline after its last
+    /// line, is the same program.
+    pub fn of(name: impl Into<String>, text: &str) -> ProgramId {
+        let mut hash = Sha256::new();
+        let mut lines = 0;
+        for line in text.lines() {
+            hash.update(line.as_bytes());
+            hash.update(b"\n");
+            lines += 1;
+        }
+        ProgramId {
+            name: name.into(),
+            sha256: hex(&hash.finalize()),
+            lines,
+        }
+    }
+}
+
+/// SHA-256 of `bytes`, lower-case hex.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    hex(&Sha256::digest(bytes))
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Where a run's events are in its executed-path log.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LogPlace {
+    /// The log (absolute, so that any later command finds it).
+    pub path: PathBuf,
+    /// Its length when the run opened it: the run's events begin there.
+    pub offset: u64,
+}
+
+/// What is known of a run when it starts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NewRun {
+    /// What kind of run.
+    pub kind: Kind,
+    /// The job file.
+    pub job: Option<FileSnapshot>,
+    /// The machine profile file.
+    pub machine: Option<FileSnapshot>,
+    /// The machine profile's name.
+    pub machine_name: Option<String>,
+    /// The program, if it is known before the run (a stream, a dry run).
+    pub program: Option<ProgramId>,
+    /// The plan report (JSON), if the job was planned before the run.
+    pub plan_report: Option<String>,
+    /// How the program goes (serial, modbus-tcp, …).
+    pub transport: Option<String>,
+    /// Where it goes (a port, an address).
+    pub port: Option<String>,
+    /// The line (1-based) the run starts at when it resumes an earlier one.
+    pub resume_from: Option<usize>,
+    /// Its executed-path log.
+    pub log: Option<LogPlace>,
+    /// The process that runs it.
+    pub process: Process,
+}
+
+impl NewRun {
+    /// A run of `kind` by this process, nothing else known yet.
+    pub fn new(kind: Kind) -> NewRun {
+        NewRun {
+            kind,
+            job: None,
+            machine: None,
+            machine_name: None,
+            program: None,
+            plan_report: None,
+            transport: None,
+            port: None,
+            resume_from: None,
+            log: None,
+            process: Process::current(),
+        }
+    }
+}
+
+/// The profile error a dry run measured.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Measured {
+    /// Largest overcut, mm.
+    pub max_overcut_mm: f64,
+    /// Largest undercut, mm.
+    pub max_undercut_mm: f64,
+    /// The allowable error Δ, mm.
+    pub delta_mm: f64,
+    /// Completed with the whole groove within Δ.
+    pub within_delta: bool,
+}
+
+/// How a run ended, as its record is closed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Ending {
+    /// Completed, stopped, failed or interrupted.
+    pub outcome: Outcome,
+    /// Why, if it did not complete.
+    pub reason: Option<String>,
+    /// The program, if it was made by the run (a plan).
+    pub program: Option<ProgramId>,
+    /// The plan report (JSON), if the run planned.
+    pub plan_report: Option<String>,
+    /// A dry run's measured error.
+    pub measured: Option<Measured>,
+    /// Where to resume (1-based line), if it did not complete.
+    pub resume_at: Option<usize>,
+    /// Lines from `resume_at` up to this one may have run all the same.
+    pub possibly_run_to: Option<usize>,
+    /// The last line known done.
+    pub last_line: Option<usize>,
+    /// What happened as it went that is not noted yet (alarms, its stop).
+    pub notes: Vec<Note>,
+}
+
+impl Ending {
+    /// An ending with `outcome` and nothing more known.
+    pub fn new(outcome: Outcome) -> Ending {
+        Ending {
+            outcome,
+            reason: None,
+            program: None,
+            plan_report: None,
+            measured: None,
+            resume_at: None,
+            possibly_run_to: None,
+            last_line: None,
+            notes: Vec::new(),
+        }
+    }
+}
+
+/// One thing that happened to a run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Note {
+    /// What.
+    pub kind: NoteKind,
+    /// When (set by the store as it writes the note).
+    pub at: Option<String>,
+    /// The program line it concerns (1-based): where a stop resumes, where a hold held.
+    pub line: Option<usize>,
+    /// An alarm's code.
+    pub code: Option<u32>,
+    /// In words.
+    pub text: String,
+}
+
+impl Note {
+    /// A note of `kind` saying `text`, no line, no code.
+    pub fn new(kind: NoteKind, text: impl Into<String>) -> Note {
+        Note {
+            kind,
+            at: None,
+            line: None,
+            code: None,
+            text: text.into(),
+        }
+    }
+}
+
+/// Which runs to list; every field left `None` lets every run through.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Filter {
+    /// The job file's path or the program's name contains this (any case).
+    pub job: Option<String>,
+    /// The machine profile's name or path contains this (any case).
+    pub machine: Option<String>,
+    /// Started at or after this.
+    pub since: Option<Timestamp>,
+    /// Started before this.
+    pub until: Option<Timestamp>,
+    /// Ended so (or still running).
+    pub outcome: Option<Outcome>,
+    /// At most this many, the newest.
+    pub limit: Option<u32>,
+}
+
+/// A run as a list shows it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunSummary {
+    /// Its number.
+    pub id: RunId,
+    /// What kind of run.
+    pub kind: Kind,
+    /// How it ended.
+    pub outcome: Outcome,
+    /// When it started and ended (UTC, RFC 3339).
+    pub started_at: String,
+    /// See `started_at`.
+    pub ended_at: Option<String>,
+    /// The job file.
+    pub job: Option<String>,
+    /// The program.
+    pub program: Option<String>,
+    /// The machine profile's name.
+    pub machine: Option<String>,
+    /// How the program went.
+    pub transport: Option<String>,
+    /// Where it resumes (1-based line), if it did not complete.
+    pub resume_at: Option<usize>,
+    /// Why, if it did not complete.
+    pub reason: Option<String>,
+}
+
+/// A whole record.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Run {
+    /// What a list shows of it.
+    #[serde(flatten)]
+    pub summary: RunSummary,
+    /// The host it ran on.
+    pub host: String,
+    /// The process that ran it.
+    pub pid: u32,
+    /// The job file as it was.
+    pub job_file: Option<FileSnapshot>,
+    /// The machine profile file as it was.
+    pub machine_file: Option<FileSnapshot>,
+    /// The program's name, hash and length.
+    pub program_id: Option<ProgramId>,
+    /// Where it went.
+    pub port: Option<String>,
+    /// The plan report.
+    pub plan_report: Option<serde_json::Value>,
+    /// A dry run's measured error.
+    pub measured: Option<Measured>,
+    /// The line it started at, if it resumed an earlier run.
+    pub resume_from: Option<usize>,
+    /// The run it resumed: the latest earlier run of the same program that did not
+    /// complete, the one whose resume point is `resume_from` if there is one.
+    pub resumes: Option<RunId>,
+    /// Lines from `resume_at` up to this one may have run all the same.
+    pub possibly_run_to: Option<usize>,
+    /// The last line known done.
+    pub last_line: Option<usize>,
+    /// Its executed-path log.
+    pub log: Option<LogPlace>,
+    /// What happened as it went, in order.
+    pub notes: Vec<Note>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_words_read_back_as_what_they_name() {
+        for kind in [Kind::Plan, Kind::DryRun, Kind::Stream, Kind::Serve] {
+            assert_eq!(Kind::from_word(kind.as_str()), Some(kind));
+            assert_eq!(serde_json::to_value(kind).unwrap(), kind.as_str());
+        }
+        for outcome in [
+            Outcome::Running,
+            Outcome::Completed,
+            Outcome::Stopped,
+            Outcome::Failed,
+            Outcome::Interrupted,
+        ] {
+            assert_eq!(Outcome::from_word(outcome.as_str()), Some(outcome));
+            assert_eq!(serde_json::to_value(outcome).unwrap(), outcome.as_str());
+        }
+        for kind in [
+            NoteKind::Alarm,
+            NoteKind::Hold,
+            NoteKind::Resume,
+            NoteKind::Stop,
+        ] {
+            assert_eq!(NoteKind::from_word(kind.as_str()), Some(kind));
+        }
+        assert_eq!(Outcome::from_word("done"), None);
+    }
+
+    #[test]
+    fn hashes_are_sha_256_of_the_bytes() {
+        // FIPS 180-2's test vector "abc".
+        assert_eq!(
+            sha256_hex(b"abc"),
+            "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
+        );
+        let program = ProgramId::of("p.nc", "G0 X1\nG1 Z2\n");
+        assert_eq!(program.lines, 2);
+        assert_eq!(program.sha256, sha256_hex(b"G0 X1\nG1 Z2\n"));
+        // Line ends are not the program.
+        assert_eq!(
+            ProgramId::of("q.nc", "G0 X1\r\nG1 Z2").sha256,
+            program.sha256
+        );
+        assert_ne!(
+            ProgramId::of("p.nc", "G0 X1\nG1 Z3\n").sha256,
+            program.sha256
+        );
+        let file = FileSnapshot::of("job.toml", b"a = 1\n");
+        assert_eq!((file.text.as_str(), file.sha256.len()), ("a = 1\n", 64));
+    }
+}
