@@ -520,19 +520,6 @@ impl Console {
             })
         });
         let completed = ending.outcome == Outcome::Completed;
-        // judge::dry_run reports no resume point of a Modbus or CAN dry run (its transports
-        // know one, its report drops it): such a stop cannot be resumed here, and says so.
-        let unresumable = (!completed
-            && resume.is_none()
-            && inputs.link.is_none()
-            && resume_at.is_none()
-            && inputs.transport != TransportKind::Serial)
-            .then(|| {
-                format!(
-                    "no resume point: a {} dry run does not say where it stopped; run it again",
-                    inputs.transport.name()
-                )
-            });
         self.registry.end(machine, id, |v| {
             v.completed = completed;
             v.link_use = link_use.or(v.link_use);
@@ -550,9 +537,6 @@ impl Console {
                 None => {}
             }
             if let Some(text) = unclosed {
-                v.message(text);
-            }
-            if let Some(text) = unresumable {
                 v.message(text);
             }
         });

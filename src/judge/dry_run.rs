@@ -23,12 +23,13 @@ use crate::judge::guard::DeltaGuard;
 use crate::judge::simulator;
 use crate::judge::verify::CheckError;
 use crate::log::{self, ExecLog, LogError};
-use crate::post::modbus::SegmentError;
+use crate::post::modbus::{segment_moves, SegmentError};
 use crate::post::setpoints::SampleConfig;
 use crate::protocol::canopen::session::SessionConfig;
 use crate::protocol::canopen::slcan::Bitrate;
 use crate::protocol::grbl::codes::alarm_message;
 use crate::transport::link::can_bus;
+use crate::transport::run::Pickup;
 use crate::transport::serial::{
     link_utilization, stream_port, Ending, SerialError, StreamOptions, StreamOutcome,
 };
@@ -106,6 +107,10 @@ pub struct DryRunReport {
     /// How the stream ended, when it did not complete.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stop: Option<String>,
+    /// Where a run that did not complete resumes: the program line (1-based) of the first
+    /// move not known to have run, as `whirl stream --resume-at` takes it; also in the log.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub resume_at: Option<usize>,
     /// Simulated time from the first move's start to the last one's end, s: what the job
     /// takes on the machine, stops for a slow sender included. (Before and after, the
     /// simulator's clock runs on while the streamer opens the port and confirms the machine
@@ -225,6 +230,8 @@ struct RunEnd {
     lines: usize,
     acked: usize,
     stop: Option<String>,
+    /// The program line (1-based) to resume at.
+    resume_at: Option<usize>,
     link_utilization: f64,
 }
 
@@ -264,6 +271,7 @@ impl SimSide {
             lines: ending.lines,
             lines_acked: ending.acked,
             stop: ending.stop,
+            resume_at: ending.resume_at,
             machine_time_s: self.motion.map_or(0.0, |(start, end)| end - start),
             wall_time_s: self.started.elapsed().as_secs_f64(),
             baud,
@@ -345,6 +353,18 @@ impl SimSide {
 
     fn message(&mut self, text: String) {
         self.log(log::Event::Message { text });
+    }
+
+    /// Where a fieldbus run that did not complete resumes, `line` (0-based) of the program,
+    /// logged beside its End as `whirl stream` logs it; gives it 1-based, as the report
+    /// and `--resume-at` say it.
+    fn resume_at(&mut self, line: Option<usize>) -> Option<usize> {
+        let line = line? + 1;
+        self.log(log::Event::ResumeAt {
+            line,
+            possibly_run_to: None,
+        });
+        Some(line)
     }
 
     fn log(&mut self, event: log::Event) {
@@ -454,6 +474,7 @@ async fn over_serial(
             Ending::Stopped(reason) => Some(reason.to_string()),
             other => Some(other.to_string()),
         },
+        resume_at: outcome.resume.as_ref().map(|r| r.line_index + 1),
         link_utilization: link_utilization(
             outcome.bytes_written,
             options.baud,
@@ -524,6 +545,7 @@ async fn over_modbus(
 
     let segments = crate::post::modbus::segments(program)?;
     let total = segments.len();
+    let moves = Pickup::whole(posted);
     let (controller, points) = guarded_controller(job, machine, ControllerOptions::default())?;
     let bank = Bank::new(
         controller,
@@ -542,12 +564,13 @@ async fn over_modbus(
     let mut sim = SimSide::new(log);
     let stream_options = ModbusOptions {
         clock_scale: scale,
+        segment_moves: segment_moves(program),
         program: name.to_owned(),
         on_progress: options.progress,
         commands: options.commands,
         ..ModbusOptions::default()
     };
-    let outcome = match kind {
+    let streamed = match kind {
         ModbusKind::Tcp => {
             let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
                 .await
@@ -560,7 +583,7 @@ async fn over_modbus(
                 }),
                 stream_modbus(&link, segments, stream_options, log),
             )
-            .await?
+            .await
         }
         ModbusKind::Rtu => {
             let (master, slave) = tokio_serial::SerialStream::pair().map_err(DryRunError::Pty)?;
@@ -571,17 +594,24 @@ async fn over_modbus(
                 path: device,
                 baud: options.baud,
             };
-            let outcome = until_streamed(
+            let streamed = until_streamed(
                 serve_rtu(master, std::sync::Arc::clone(&bank), clock, |e| {
                     sim.on_event(e)
                 }),
                 stream_modbus(&link, segments, stream_options, log),
             )
-            .await?;
+            .await;
             drop(slave);
-            outcome
+            streamed
         }
     };
+    let resume_move = match &streamed {
+        Ok(outcome) => outcome.resume_move,
+        Err(DryRunError::ModbusStream(error)) => error.resume_move(),
+        Err(_) => None,
+    };
+    let resume_at = sim.resume_at(resume_move.map(|at| moves.line_of(at)));
+    let outcome = streamed?;
     let bank = bank.lock().unwrap_or_else(|p| p.into_inner());
     if let Some(alarm) = outcome.alarm {
         // An alarm of the map's own (a refused slot, the watchdog) the controller did not
@@ -603,6 +633,7 @@ async fn over_modbus(
             .map(|a| a.to_string())
             .or_else(|| outcome.failure.as_ref().map(ToString::to_string))
             .or_else(|| outcome.aborted.then(|| "aborted".to_owned())),
+        resume_at,
         // A TCP link has no byte rate to fill. An RTU line's: the exchanges' bit times
         // over what the line carries in the controller's time.
         link_utilization: match kind {
@@ -722,7 +753,7 @@ async fn over_can(
     };
     let mut sim = SimSide::new(log);
     let mut merger = cycles::Merger::new(counts_per_unit);
-    let outcome = until_streamed(
+    let streamed = until_streamed(
         serve_slcan(
             master,
             std::sync::Arc::clone(&bus),
@@ -741,8 +772,15 @@ async fn over_can(
         ),
         stream_can(&link, program, options, log),
     )
-    .await?;
+    .await;
     drop(slave);
+    let resume_move = match &streamed {
+        Ok(outcome) => outcome.resume_move,
+        Err(DryRunError::CanStream(error)) => error.resume_move(),
+        Err(_) => None,
+    };
+    let resume_at = sim.resume_at(resume_move.map(|at| Pickup::whole(posted).line_of(at)));
+    let outcome = streamed?;
     if let Some(stretch) = merger.finish() {
         sim.stretch(stretch);
     }
@@ -762,6 +800,7 @@ async fn over_can(
         lines: outcome.setpoints,
         acked: outcome.sent,
         stop: outcome.stop.as_ref().map(ToString::to_string),
+        resume_at,
         link_utilization: outcome.bus_load(bitrate.bits_per_second()),
     };
     sim.report(name, measured, points, ending, bitrate.bits_per_second())

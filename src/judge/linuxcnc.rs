@@ -537,6 +537,8 @@ pub async fn dry_run(
         lines: posted.lines.len(),
         lines_acked: sampled.furthest_line as usize,
         stop,
+        // LinuxCNC keeps its place in the program: a stopped run resumes at its console.
+        resume_at: None,
         machine_time_s: sampled.machine_time_s,
         wall_time_s: started.elapsed().as_secs_f64(),
         baud: 0,

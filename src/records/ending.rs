@@ -36,6 +36,7 @@ impl Ending {
         } else {
             Outcome::Stopped
         });
+        ending.resume_at = report.resume_at;
         if !report.completed {
             ending.reason = report.stop.clone().or_else(|| {
                 report
@@ -94,6 +95,7 @@ mod tests {
             lines: 100,
             lines_acked: 100,
             stop: None,
+            resume_at: (!completed).then_some(42),
             machine_time_s: 10.0,
             wall_time_s: 1.0,
             baud: 115_200,
@@ -124,7 +126,8 @@ mod tests {
         assert_eq!(ending.notes[0].code, Some(64));
         assert!(ending.notes[0].text.ends_with("0.0123 mm overcut at Z-12"));
         assert_eq!(ending.measured.unwrap().max_overcut_mm, 0.004);
-        assert_eq!(ending.resume_at, None);
+        // Where the dry run said to resume, as its report gives it (1-based).
+        assert_eq!(ending.resume_at, Some(42));
         let done = Ending::of_dry_run(&report(true, vec![]));
         assert_eq!((done.outcome, done.reason), (Outcome::Completed, None));
         assert!(done.measured.unwrap().within_delta);

@@ -333,6 +333,11 @@ impl Pickup {
         Ok(Pickup::new(posted, approach, from, Some(line)))
     }
 
+    /// The whole of `posted` from its start, as a dry run sends it.
+    pub(crate) fn whole(posted: &Posted) -> Pickup {
+        Pickup::new(posted, Vec::new(), 0, None)
+    }
+
     fn new(posted: &Posted, approach: Vec<Move>, from: usize, line: Option<usize>) -> Pickup {
         let lines = std::iter::repeat_n(line.unwrap_or(0), approach.len())
             .chain(posted.move_lines[from..].iter().map(|&l| l - 1))
