@@ -31,7 +31,7 @@ impl Position {
         Position { x, z, c }
     }
 
-    /// As `[x, z, c]` (the order of `whirl::exec_log::Event::Executed`).
+    /// As `[x, z, c]` (the order of `whirl::log::Event::Executed`).
     pub fn to_array(self) -> [f64; 3] {
         [self.x, self.z, self.c]
     }

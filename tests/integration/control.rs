@@ -14,9 +14,19 @@ use whirl::config::job::Job;
 use whirl::config::machine::MachineProfile;
 use whirl::judge::dry_run::{dry_run, DryRunOptions, DryRunReport};
 use whirl::log::{Event, ExecLog, Record};
+use whirl::program::Position;
 use whirl::transport::{control, Control, Posted, TransportKind};
 
 use crate::util;
+
+/// The double-start example planned for `profile`, as the machine gets it.
+fn posted(profile: &str) -> (Job, MachineProfile, Posted) {
+    let job = Job::load(&util::example("double-start")).unwrap();
+    let machine = MachineProfile::load(&util::root().join(profile)).unwrap();
+    let plan = whirl::plan::plan(&job, &machine).unwrap();
+    let posted = Posted::read("double-start", &plan.text, &machine).unwrap();
+    (job, machine, posted)
+}
 
 /// The double-start example planned for `profile`, dry-run over `transport` while
 /// `operator` watches the log and presses `control`'s buttons.
@@ -25,10 +35,7 @@ fn run_with(
     profile: &str,
     operator: impl FnOnce(Control, ExecLog) + Send + 'static,
 ) -> (DryRunReport, Vec<Record>) {
-    let job = Job::load(&util::example("double-start")).unwrap();
-    let machine = MachineProfile::load(&util::root().join(profile)).unwrap();
-    let plan = whirl::plan::plan(&job, &machine).unwrap();
-    let posted = Posted::read("double-start", &plan.text, &machine).unwrap();
+    let (job, machine, posted) = posted(profile);
     let log = ExecLog::memory();
     let (control, commands) = control();
     let watched = log.clone();
@@ -189,6 +196,59 @@ fn an_abort_ends_the_run_with_the_machine_stopped_on_every_transport() {
         assert!(
             report.lines_acked < report.lines / 2,
             "{transport}: {report:?}"
+        );
+    }
+}
+
+/// Every transport's stop. Each transport reads its resume point off what the controller
+/// reported executed (grbl's status, the register map's `EXECUTED_SEQ`, the drives' actual
+/// positions), so the machine stands on the move of the resume line: at or past its start,
+/// not past its end (a linked move feeds Z one way). The report and the log say the same
+/// line, and it is a line that moves the machine.
+#[test]
+fn a_stop_says_where_to_resume_and_the_machine_stands_on_that_line_on_every_transport() {
+    for (transport, profile) in [
+        (TransportKind::Serial, "machine-profiles/sim.toml"),
+        (TransportKind::ModbusTcp, "machine-profiles/sim.toml"),
+        (
+            TransportKind::CanSlcan,
+            "machine-profiles/canopen-drives.toml",
+        ),
+    ] {
+        let (report, log) = run_with(transport, profile, |control, log| {
+            wait_for(&log, "the cut under way", |r| executed(r) >= 200);
+            assert!(control.stop("the operator's stop"));
+        });
+        assert!(!report.completed, "{transport}: {report:?}");
+        let line = report
+            .resume_at
+            .unwrap_or_else(|| panic!("{transport}: no resume line: {report:?}"));
+        let logged = log.iter().rev().find_map(|r| match r.event {
+            Event::ResumeAt { line, .. } => Some(line),
+            _ => None,
+        });
+        assert_eq!(logged, Some(line), "{transport}: the log's resume line");
+        let (_, _, posted) = posted(profile);
+        let index = posted
+            .move_lines
+            .iter()
+            .position(|&l| l == line)
+            .unwrap_or_else(|| panic!("{transport}: line {line} moves nothing"));
+        let step = posted.program.steps(Position::UNKNOWN).nth(index).unwrap();
+        let stand = log
+            .iter()
+            .rev()
+            .find_map(|r| match r.event {
+                Event::Executed { to, .. } => Some(to),
+                _ => None,
+            })
+            .expect("the machine moved");
+        let (from, to) = (step.from.z.unwrap(), step.to.z.unwrap());
+        let (low, high) = (from.min(to) - 1e-4, from.max(to) + 1e-4);
+        assert!(
+            (low..=high).contains(&stand[1]),
+            "{transport}: the machine stands at Z {}, the resume line {line} runs Z {from} to {to}",
+            stand[1]
         );
     }
 }
