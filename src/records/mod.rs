@@ -1,4 +1,4 @@
-//! Run records: every `plan`, `dry-run`, `stream` (and, later, `serve`) run in a real
+//! Run records: every `plan`, `dry-run`, `stream` and console (`serve`) run in a real
 //! database, so that a shop can say months later which program cut which part, on which
 //! machine, with which alarms and resumes.
 //!

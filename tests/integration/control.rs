@@ -168,16 +168,19 @@ fn a_hold_stands_the_machine_and_a_resume_finishes_within_delta_over_can() {
     assert_held_and_finished(transport, &report, &log);
 }
 
+/// Each transport the simulator serves, with a machine profile it runs on.
+const EVERY_TRANSPORT: [(TransportKind, &str); 3] = [
+    (TransportKind::Serial, "machine-profiles/sim.toml"),
+    (TransportKind::ModbusTcp, "machine-profiles/sim.toml"),
+    (
+        TransportKind::CanSlcan,
+        "machine-profiles/canopen-drives.toml",
+    ),
+];
+
 #[test]
 fn an_abort_ends_the_run_with_the_machine_stopped_on_every_transport() {
-    for (transport, profile) in [
-        (TransportKind::Serial, "machine-profiles/sim.toml"),
-        (TransportKind::ModbusTcp, "machine-profiles/sim.toml"),
-        (
-            TransportKind::CanSlcan,
-            "machine-profiles/canopen-drives.toml",
-        ),
-    ] {
+    for (transport, profile) in EVERY_TRANSPORT {
         let (report, log) = run_with(transport, profile, |control, log| {
             wait_for(&log, "the cut under way", |r| executed(r) >= 50);
             assert!(control.abort());
@@ -207,14 +210,7 @@ fn an_abort_ends_the_run_with_the_machine_stopped_on_every_transport() {
 /// line, and it is a line that moves the machine.
 #[test]
 fn a_stop_says_where_to_resume_and_the_machine_stands_on_that_line_on_every_transport() {
-    for (transport, profile) in [
-        (TransportKind::Serial, "machine-profiles/sim.toml"),
-        (TransportKind::ModbusTcp, "machine-profiles/sim.toml"),
-        (
-            TransportKind::CanSlcan,
-            "machine-profiles/canopen-drives.toml",
-        ),
-    ] {
+    for (transport, profile) in EVERY_TRANSPORT {
         let (report, log) = run_with(transport, profile, |control, log| {
             wait_for(&log, "the cut under way", |r| executed(r) >= 200);
             assert!(control.stop("the operator's stop"));
