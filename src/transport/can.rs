@@ -609,7 +609,6 @@ pub async fn stream_can(
         progress: Told {
             started: Instant::now(),
             report: options.on_progress.take(),
-            every: PROGRESS_EVERY,
             last: None,
             period,
         },
@@ -672,12 +671,11 @@ struct Run {
 /// How often the caller's progress display is told, in the session's time.
 const PROGRESS_EVERY: Duration = Duration::from_secs(1);
 
-/// The caller's progress display, told every `every` of the session's time: by its time,
-/// not by the set-points sent, so that a held run, whose set-points stand, is told too (a
-/// console reads the run's log, where the hold's words are, when it is told).
+/// The caller's progress display, told every [`PROGRESS_EVERY`] of the session's time: by
+/// its time, not by the set-points sent, so that a held run, whose set-points stand, is told
+/// too (a console reads the run's log, where the hold's words are, when it is told).
 struct Told {
     report: Option<ProgressFn>,
-    every: Duration,
     /// The session's time when it was last told.
     last: Option<Duration>,
     period: Duration,
@@ -704,10 +702,10 @@ impl Told {
         }
     }
 
-    /// Tells it if `every` of the session's time has passed since it was last told (or
-    /// it never was).
+    /// Tells it if [`PROGRESS_EVERY`] of the session's time has passed since it was last
+    /// told (or it never was).
     fn step(&mut self, progress: (usize, usize), now: Duration) {
-        if self.last.is_none_or(|last| now >= last + self.every) {
+        if self.last.is_none_or(|last| now >= last + PROGRESS_EVERY) {
             self.tell(progress, now);
         }
     }
@@ -936,7 +934,6 @@ mod tests {
         let (report, told) = display();
         let mut progress = Told {
             report: Some(report),
-            every: PROGRESS_EVERY,
             last: None,
             period: Duration::from_millis(4),
             started: Instant::now(),
