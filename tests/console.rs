@@ -3,7 +3,8 @@
 //! machine, also against `whirl stream`), its runs in the run records and a stream to a
 //! machine (`whirl-sim` on a pseudo-terminal), and a real headless Chromium driven through
 //! chromedriver (WebDriver) through dry runs over serial, Modbus and CAN with Hold, Resume,
-//! Stop, a resume at the offered line and the run found in the history.
+//! the feed override, Stop, a resume at the offered line and the runs found in the
+//! history.
 //!
 //! Every `whirl` here records its runs in a database of the test's own (`WHIRL_DB`).
 //!
@@ -276,6 +277,81 @@ fn a_busy_machine_refuses_a_second_run_and_a_stream_from_another_terminal() {
     assert_eq!(again.status, 200, "{}", again.body);
 }
 
+#[test]
+fn the_feed_override_needs_the_token_a_run_and_a_value_within_the_cap() {
+    let serve = Serve::start(&["--token", TOKEN]);
+    let machine = serve.get("/api/machines").json()[0]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let token = [("X-Whirl-Token", TOKEN)];
+    let path = format!("/api/runs/{}/feed-override", machine.replace(' ', "%20"));
+    let ask = |percent: u16| serde_json::json!({ "percent": percent }).to_string();
+    // No run: nothing to override.
+    let idle = serve.post(&path, &token, &ask(90));
+    assert_eq!(idle.status, 409, "{}", idle.body);
+    assert!(idle.body.contains("has no run going"), "{}", idle.body);
+    // A dry run at half real time: running throughout the test.
+    let started = serve.post("/api/runs", &token, &run_request(&machine, 0.5));
+    assert_eq!(started.status, 200, "{}", started.body);
+    // Without the token: refused before the request is read.
+    let anonymous = serve.post(&path, &[], &ask(90));
+    assert_eq!(anonymous.status, 401, "{}", anonymous.body);
+    // Above the cap: refused, naming the cap and why it is there.
+    let cap = feed_cap(&plan_of(&serve, JOB, &machine, &token));
+    let view = |serve: &Serve| serve.get("/api/runs").json()[0].clone();
+    let reason = view(&serve)["feed"]["cap"]["reason"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    assert!(reason.contains("insert cusp"), "{reason}");
+    let above = serve.post(&path, &token, &ask(cap + 1));
+    assert_eq!(above.status, 422, "{}", above.body);
+    assert_eq!(
+        above.json()["error"],
+        format!(
+            "a feed override of {} % is above the cap of {cap} %: {reason}",
+            cap + 1
+        )
+    );
+    // Below grbl's slowest (MIN_FEED_RATE_OVERRIDE, 10 %): refused too.
+    let below = serve.post(&path, &token, &ask(9));
+    assert_eq!(below.status, 422, "{}", below.body);
+    assert!(below.body.contains("below 10 %"), "{}", below.body);
+    // The refusals asked nothing.
+    assert_eq!(view(&serve)["feed"]["asked"], 100);
+    // Within the cap: asked, and the simulated grbl runs at it (its Ov: read back).
+    let within = serve.post(&path, &token, &ask(90));
+    assert_eq!(within.status, 200, "{}", within.body);
+    assert_eq!(within.json()["percent"], 90);
+    wait_for(Duration::from_secs(60), "the controller at 90 %", || {
+        view(&serve)["feed"]["running"] == 90
+    });
+    // A step past the controller's slowest is held there, saying why (the keys' rule).
+    let step = serve.post(&path, &token, r#"{"step": -1000}"#);
+    assert_eq!(step.status, 200, "{}", step.body);
+    assert_eq!(step.json()["percent"], 10);
+    assert!(
+        step.json()["held"]
+            .as_str()
+            .unwrap()
+            .contains("the slowest grbl's range takes"),
+        "{}",
+        step.body
+    );
+    // Stopped, the run takes no more.
+    let stop = serve.post(
+        &format!("/api/runs/{}/stop", machine.replace(' ', "%20")),
+        &token,
+        "{}",
+    );
+    assert_eq!(stop.status, 200, "{}", stop.body);
+    wait_for(Duration::from_secs(60), "the run to end", || {
+        view(&serve)["phase"] == "ended"
+    });
+    assert_eq!(serve.post(&path, &token, &ask(90)).status, 409);
+}
+
 fn wait_for(limit: Duration, what: &str, mut done: impl FnMut() -> bool) {
     let start = Instant::now();
     while !done() {
@@ -369,6 +445,36 @@ fn first_number(text: &str) -> Option<usize> {
         .ok()
 }
 
+/// The fastest feed override a plan allows, from its report: the insert cusp grows with
+/// the square of the feed (the workpiece turns further between two insert hits while the
+/// ring keeps its speed), and may grow into its share of Δ, the planned cusp and what the
+/// plan leaves of Δ unspent; in whole percent, at most 200 % (grbl's
+/// `MAX_FEED_RATE_OVERRIDE`, which the Modbus map and the CANopen bridge take too), and
+/// never under the plan's own 100 %.
+fn feed_cap(plan: &serde_json::Value) -> u16 {
+    let figure = |key: &str| {
+        plan[key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key}: {plan}"))
+    };
+    let (cusp, held, delta) = (
+        figure("cusp_mm"),
+        figure("max_error_mm"),
+        figure("delta_mm"),
+    );
+    let share = cusp + (delta - held).max(0.0);
+    let by_cusp = (100.0 * (share / cusp).sqrt()).floor();
+    by_cusp.clamp(100.0, 200.0) as u16
+}
+
+/// The plan report of `job` on `machine`, as the console plans it.
+fn plan_of(serve: &Serve, job: &str, machine: &str, headers: &[(&str, &str)]) -> serde_json::Value {
+    let body = serde_json::json!({"job": job, "machine": machine}).to_string();
+    let answer = serve.post("/api/plan", headers, &body);
+    assert_eq!(answer.status, 200, "{}", answer.body);
+    answer.json()
+}
+
 #[test]
 fn the_console_in_a_browser_runs_holds_resumes_stops_and_resumes_at_the_line() {
     let Some((chromium, chromedriver)) = browser() else {
@@ -412,14 +518,15 @@ fn the_console_in_a_browser_runs_holds_resumes_stops_and_resumes_at_the_line() {
     shoot(&page, "jobs");
 
     // Run: the example dry-run at 50 times real time (17 minutes of machine time), held,
-    // resumed, stopped and resumed at the offered line.
-    let line = dry_run_sequence(&page, &serve, None, JOB, "serial", "50", true)
-        .expect("a serial dry run resumes");
-    // Stopped and resumed along the groove, the cut as a whole is within Δ.
-    let measured = page.text("run-measured");
-    assert!(measured.starts_with("within Δ"), "{measured}");
+    // resumed, its feed overridden, stopped and resumed at the offered line.
+    let machine = serve.get("/api/machines").json()[0]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let cap = feed_cap(&plan_of(&serve, JOB, &machine, &[]));
+    let line = dry_run_sequence(&page, &serve, None, JOB, "serial", "50", cap, true);
     shoot(&page, "run-completed");
-    found_in_history(&page, &serve, JOB, line, true);
+    found_in_history(&page, &serve, JOB, "serial", line, true);
 
     // Groove: the executed section against the target, with the Δ band.
     page.open(&format!("{}#groove", serve.url()));
@@ -440,10 +547,27 @@ fn the_console_in_a_browser_runs_holds_resumes_stops_and_resumes_at_the_line() {
     eprintln!("screenshots of every page in {}", screenshots().display());
 }
 
+/// Whether the run page shows the machine standing held, in its transport's words: grbl's
+/// `Hold:0` (the hold complete, the machine at rest), the Modbus register map's `Held`,
+/// the CANopen master's word once every drive stands on the path (drives report no state
+/// of the job).
+fn held_shown(page: &Session, transport: &str) -> bool {
+    match transport {
+        "serial" => page.text("run-state").starts_with("Hold:0"),
+        "modbus-tcp" | "modbus-rtu" => page.text("run-state") == "Held",
+        _ => page
+            .text("run-messages")
+            .contains("the drives stand on the path"),
+    }
+}
+
 /// On the run page: dry-runs `job` over `transport` at `scale` on `machine` (the first if
-/// `None`), watches progress advance, holds (the simulator stands: a serial controller
-/// says `Hold:0`; a fieldbus run's figures stand still while it runs), resumes, stops, and
-/// resumes at the offered line to the end. Gives the line it resumed at.
+/// `None`), watches progress advance, holds (the simulator stands, [`held_shown`], and
+/// nothing advances), resumes, sets a feed override within the run's `cap` and sees the
+/// controller run at it, is refused one above the cap with the cap's reason, goes back to
+/// 100 %, stops, and resumes at the offered line to the end, the cut as a whole within Δ.
+/// Gives the line it resumed at.
+#[allow(clippy::too_many_arguments)]
 fn dry_run_sequence(
     page: &Session,
     serve: &Serve,
@@ -451,8 +575,9 @@ fn dry_run_sequence(
     job: &str,
     transport: &str,
     scale: &str,
+    cap: u16,
     shots: bool,
-) -> Option<usize> {
+) -> usize {
     let long = Duration::from_secs(120);
     page.open(&format!("{}#run", serve.url()));
     page.wait("the run form", long, |p| {
@@ -484,26 +609,12 @@ fn dry_run_sequence(
 
     // Hold: the simulator holds and stands.
     page.click("#btn-hold");
-    if transport == "serial" {
-        page.wait("the hold", long, |p| {
-            p.text("run-state").starts_with("Hold:0").then_some(())
-        });
-    } else {
-        page.wait("the hold", long, |p| {
-            p.text("run-messages")
-                .contains("hold requested")
-                .then_some(())
-        });
-        // The path slows to a stand over the machine's stop time.
-        std::thread::sleep(Duration::from_secs(2));
-    }
+    page.wait("the hold", long, |p| held_shown(p, transport).then_some(()));
     let held = (page.text("run-position"), done(page));
     std::thread::sleep(Duration::from_secs(1));
     assert_eq!((page.text("run-position"), done(page)), held, "held still");
     assert!(page.text("run-title").contains("(running)"));
-    if transport == "serial" {
-        assert!(page.text("run-state").starts_with("Hold"));
-    }
+    assert!(held_shown(page, transport));
 
     // Resume: running again.
     page.click("#btn-resume");
@@ -511,9 +622,53 @@ fn dry_run_sequence(
     page.wait("progress after the resume", long, |p| {
         done(p).filter(|&n| n > resumed)
     });
+
+    // The feed override: offered up to the cap, with why it stops there.
+    assert!(page.displayed("#feed"));
+    let offered = page.text("feed-cap");
+    assert!(
+        offered.starts_with(&format!("Offered from 10 % up to the cap of {cap} %: ")),
+        "{offered}"
+    );
+    let reason = offered.split_once(" %: ").unwrap().1.to_owned();
+    assert!(reason.contains("insert cusp"), "{reason}");
+    // Slower, within the cap: the controller runs at it, as it reports.
+    let set = |percent: u16| {
+        page.script(&format!(
+            "document.getElementById('feed-percent').value = '{percent}';"
+        ));
+        page.click("#feed-set");
+    };
+    set(90);
+    page.wait("the controller at 90 %", long, |p| {
+        p.text("feed-running")
+            .starts_with("in effect: 90 %")
+            .then_some(())
+    });
+    // Above the cap: refused, naming the cap and why.
+    set(cap + 1);
+    let refused = page.wait("the refusal", long, |p| {
+        Some(p.text("feed-error")).filter(|t| !t.is_empty())
+    });
+    assert_eq!(
+        refused,
+        format!(
+            "a feed override of {} % is above the cap of {cap} %: {reason}",
+            cap + 1
+        )
+    );
+    assert!(page.text("feed-running").starts_with("in effect: 90 %"));
     if shots {
         shoot(page, "run");
     }
+    // Back to the program's feed.
+    page.click("#feed-reset");
+    page.wait("the controller at 100 %", long, |p| {
+        p.text("feed-running")
+            .starts_with("in effect: 100 %")
+            .then_some(())
+    });
+    assert_eq!(page.text("feed-error"), "");
 
     // Stop: the run ends, offering where to resume.
     page.click("#btn-stop");
@@ -521,17 +676,6 @@ fn dry_run_sequence(
         p.text("run-title").contains("(ended)").then_some(())
     });
     assert!(page.text("run-outcome").starts_with("stopped"));
-    if transport != "serial" {
-        // judge::dry_run reports no resume point of a fieldbus dry run: none offered, and
-        // the page says why.
-        assert!(!page.displayed("#resume-offer"));
-        let messages = page.text("run-messages");
-        assert!(
-            messages.contains(&format!("no resume point: a {transport} dry run")),
-            "{messages}"
-        );
-        return None;
-    }
     page.wait("the resume offer", long, |p| {
         p.displayed("#resume-offer").then_some(())
     });
@@ -558,12 +702,25 @@ fn dry_run_sequence(
     let done_text = page.text("run-done");
     let total = first_number(done_text.split("of").nth(1).unwrap_or_default());
     assert_eq!(done(page), total, "every line");
-    Some(line)
+    // Stopped and resumed along the groove, the cut as a whole is within Δ.
+    let measured = page.wait("the cut measured", long, |p| {
+        Some(p.text("run-measured")).filter(|t| t != "–")
+    });
+    assert!(measured.starts_with("within Δ"), "{transport}: {measured}");
+    line
 }
 
 /// On the history page: the runs of `job` searched for, newest first: the resume
-/// completed, from line `line`, continuing the stopped run, which resumes at that line.
-fn found_in_history(page: &Session, serve: &Serve, job: &str, line: usize, shots: bool) {
+/// completed, from line `line`, continuing the stopped run, which resumes at that line,
+/// both over `transport`.
+fn found_in_history(
+    page: &Session,
+    serve: &Serve,
+    job: &str,
+    transport: &str,
+    line: usize,
+    shots: bool,
+) {
     let long = Duration::from_secs(60);
     page.open(&format!("{}#history", serve.url()));
     page.script(&format!(
@@ -588,6 +745,11 @@ fn found_in_history(page: &Session, serve: &Serve, job: &str, line: usize, shots
     assert_eq!(stopped[2], "stopped", "{found}");
     assert_eq!(stopped[7], line.to_string(), "{found}");
     assert!(resume[5].as_str().unwrap().contains(job), "{found}");
+    assert_eq!(
+        (&resume[6], &stopped[6]),
+        (&transport.into(), &transport.into()),
+        "{found}"
+    );
     // Searched by outcome in the server: the stopped run only.
     page.script("document.getElementById('history-outcome').value = 'stopped';");
     page.click("#history-search");
@@ -633,43 +795,39 @@ fn short_jobs(dir: &Path) -> PathBuf {
     jobs
 }
 
-#[test]
-fn the_console_in_a_browser_runs_holds_and_stops_a_modbus_dry_run() {
+/// A fieldbus dry run in the browser: 4 mm of the example's thread on the machine of
+/// `profile` over `transport` at 50 times real time, through the whole sequence
+/// ([`dry_run_sequence`]), and both runs found in the history.
+fn fieldbus_in_a_browser(profile: &str, transport: &str) {
     let Some((chromium, chromedriver)) = browser() else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
     let jobs = short_jobs(dir.path());
-    let profiles = repo().join("machine-profiles");
-    let sim = profiles.join("sim.toml");
-    let serve = Serve::start_with_jobs(dir, &jobs, &["--machine", sim.to_str().unwrap()]);
-    let machines = serve.get("/api/machines").json();
-    let name = |needle: &str| {
-        machines
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter_map(|m| m.as_str())
-            .find(|m| m.contains(needle))
-            .unwrap()
-            .to_owned()
-    };
+    let profile = repo().join("machine-profiles").join(profile);
+    let serve = Serve::start_with_jobs(dir, &jobs, &["--machine", profile.to_str().unwrap()]);
+    let machine = serve.get("/api/machines").json()[0]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let job = "short/job.toml";
+    let cap = feed_cap(&plan_of(&serve, job, &machine, &[]));
     let driver = Driver::start(&chromedriver);
     let page = Session::new(driver.1, chromium.to_str().unwrap());
-    let job = "short/job.toml";
-    let resumed = dry_run_sequence(
+    let line = dry_run_sequence(
         &page,
         &serve,
-        Some(&name("whirl-sim")),
+        Some(&machine),
         job,
-        "modbus-tcp",
-        "10",
+        transport,
+        "50",
+        cap,
         false,
     );
-    assert_eq!(resumed, None);
-    // The stopped run in the records, by its transport.
+    found_in_history(&page, &serve, job, transport, line, false);
+    // In the records: the resume completed, the stopped run resuming where it did.
     let runs = serve.get("/api/history?job=short").json();
-    let runs: Vec<(&str, &str)> = runs
+    let runs: Vec<(&str, &str, Option<u64>)> = runs
         .as_array()
         .unwrap()
         .iter()
@@ -677,10 +835,25 @@ fn the_console_in_a_browser_runs_holds_and_stops_a_modbus_dry_run() {
             (
                 r["transport"].as_str().unwrap(),
                 r["outcome"].as_str().unwrap(),
+                r["resume_at"].as_u64(),
             )
         })
         .collect();
-    assert_eq!(runs, [("modbus-tcp", "stopped")]);
+    let line = Some(line as u64);
+    assert_eq!(
+        runs,
+        [(transport, "completed", None), (transport, "stopped", line)]
+    );
+}
+
+#[test]
+fn the_console_in_a_browser_runs_holds_stops_and_resumes_a_modbus_dry_run() {
+    fieldbus_in_a_browser("sim.toml", "modbus-tcp");
+}
+
+#[test]
+fn the_console_in_a_browser_runs_holds_stops_and_resumes_a_can_dry_run() {
+    fieldbus_in_a_browser("canopen-drives.toml", "can-slcan");
 }
 
 /// `whirl-sim` serving a grblHAL controller on a pseudo-terminal it makes at `link`, at 50

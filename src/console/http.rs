@@ -1,14 +1,15 @@
 //! The console's HTTP edge: the page, its JSON API and the server-sent events, on axum.
 //!
 //! Reading is open to whoever reaches the console; every action (plan, verify, run, hold,
-//! resume, stop) needs the token when the console has one, in the `X-Whirl-Token` header
+//! resume, stop, the feed override) needs the token when the console has one, in the `X-Whirl-Token` header
 //! or the cookie the login form sets (`SameSite=Strict`, `HttpOnly`). Actions take JSON
 //! only, which a page of another site cannot post without the browser asking first.
 
-use super::registry::RunView;
+use super::registry::{FeedAsk, FeedError, RunView};
 use super::runner::{Console, RunRequest, StartError};
 use super::token;
 use crate::records::NoteKind;
+use crate::transport::control::FeedOverrideError;
 use crate::transport::Command;
 use axum::extract::{Path, Query, State};
 use axum::http::{header, HeaderMap, StatusCode};
@@ -49,6 +50,7 @@ pub fn router(console: Arc<Console>) -> Router {
         .route("/api/plan", post(plan))
         .route("/api/verify", post(verify))
         .route("/api/runs", get(runs).post(start))
+        .route("/api/runs/{machine}/feed-override", post(feed_override))
         .route("/api/runs/{machine}/{button}", post(press))
         .route("/api/runs/{machine}/groove.svg", get(groove))
         .route("/api/history", get(super::history::list))
@@ -262,6 +264,31 @@ async fn press(
         }
     }
     Ok(Json(serde_json::json!({ "pressed": button })))
+}
+
+/// A feed override for `machine`'s run (`{"percent": N}`, or `{"step": ±N}` as the keys of
+/// `whirl stream`): refused with the cap and its reason above the cap, below the
+/// controller's range, and without a run.
+async fn feed_override(
+    State(console): State<Arc<Console>>,
+    Path(machine): Path<String>,
+    Json(ask): Json<FeedAsk>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    let (percent, held) = console
+        .registry
+        .feed_override(&machine, ask)
+        .map_err(|error| {
+            let status = match &error {
+                FeedError::Run(_) | FeedError::Refused(FeedOverrideError::Ended) => {
+                    StatusCode::CONFLICT
+                }
+                FeedError::Refused(_) => StatusCode::UNPROCESSABLE_ENTITY,
+            };
+            ApiError(status, error.to_string())
+        })?;
+    Ok(Json(
+        serde_json::json!({ "percent": percent, "held": held }),
+    ))
 }
 
 /// The groove `machine`'s runs have cut so far, as SVG.

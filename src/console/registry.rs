@@ -6,6 +6,8 @@
 //! refused while the first has not ended.
 
 use crate::log::Record;
+use crate::plan::overrides::FeedCap;
+use crate::transport::control::FeedOverrideError;
 use crate::transport::{Command, Control};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -85,6 +87,34 @@ pub struct RunView {
     pub executed: usize,
     /// The run's number in the run records, if it is recorded.
     pub record: Option<i64>,
+    /// The feed override: what may be asked, what was, and what the controller runs at;
+    /// `None` for a run that takes none.
+    pub feed: Option<FeedView>,
+}
+
+/// A run's feed override, for the page.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FeedView {
+    /// The overrides offered and why the fastest is where it is (the insert cusp within
+    /// its share of Δ, or the controller's range).
+    pub cap: FeedCap,
+    /// The override last asked, percent (100 until one is).
+    pub asked: u16,
+    /// The override the controller reports running at, percent (grbl's `Ov:`, the Modbus
+    /// register read back, the CANopen bridge's set-point clock); `None` until it reports
+    /// one.
+    pub running: Option<u16>,
+}
+
+/// A feed override the page asks for: a value, or a step from the value last asked (the
+/// keys of `whirl stream`: held at the cap or the controller's slowest, saying why).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FeedAsk {
+    /// This percent of the programmed feed.
+    Percent(u16),
+    /// This many percent more (less, if negative) than the value last asked.
+    Step(i32),
 }
 
 /// The measured error of what a run (and the runs it resumed) cut.
@@ -131,6 +161,7 @@ impl RunView {
             measured: None,
             executed: 0,
             record: None,
+            feed: None,
         }
     }
 
@@ -171,6 +202,18 @@ pub enum RunError {
     /// No run to press the button of.
     #[error("machine \"{0}\" has no run going")]
     NotRunning(String),
+}
+
+/// Why a feed override was not asked of a run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FeedError {
+    /// No run going on the machine.
+    #[error(transparent)]
+    Run(#[from] RunError),
+    /// The run refused it: above its cap (naming the cap and why), below the controller's
+    /// range, or the run has just ended.
+    #[error(transparent)]
+    Refused(#[from] FeedOverrideError),
 }
 
 /// The console's runs, one slot per machine.
@@ -221,6 +264,11 @@ impl Registry {
         }
         view.id = last + 1;
         view.executed = cut.len();
+        view.feed = control.feed_cap().map(|cap| FeedView {
+            cap,
+            asked: control.feed_override_asked(),
+            running: None,
+        });
         let id = view.id;
         slots.insert(
             view.machine.clone(),
@@ -298,6 +346,29 @@ impl Registry {
         } else {
             Err(RunError::NotRunning(machine.to_owned()))
         }
+    }
+
+    /// Asks `machine`'s run for a feed override; gives the percent asked and, for a step
+    /// held at the cap or the controller's slowest, why.
+    pub fn feed_override(
+        &self,
+        machine: &str,
+        ask: FeedAsk,
+    ) -> Result<(u16, Option<String>), FeedError> {
+        let mut slots = self.slots();
+        let not_running = || RunError::NotRunning(machine.to_owned());
+        let slot = slots.get_mut(machine).ok_or_else(not_running)?;
+        let control = slot.control.as_ref().ok_or_else(not_running)?;
+        let asked = match ask {
+            FeedAsk::Percent(percent) => control.feed_override(percent).map(|p| (p, None)),
+            FeedAsk::Step(by) => control.step_feed_override(by),
+        }?;
+        if let Some(feed) = slot.view.feed.as_mut() {
+            feed.asked = asked.0;
+        }
+        drop(slots);
+        self.changed();
+        Ok(asked)
     }
 
     /// Every machine's last run, in the machines' order.
@@ -414,6 +485,83 @@ mod tests {
         let (last, cut, inputs) = registry.last("lathe").unwrap();
         assert_eq!((last.executed, cut.len()), (2, 2));
         assert!(inputs.is_some());
+    }
+
+    /// Δ = 10 µm, held to 8.5 µm with a 4 µm cusp: the cusp may grow to 5.5 µm, at
+    /// √(5.5/4) = 117 % of the feed.
+    fn cap() -> FeedCap {
+        FeedCap::new(0.01, 0.0085, 0.004, crate::plan::overrides::GRBL)
+    }
+
+    #[test]
+    fn a_feed_override_reaches_the_run_within_its_cap_and_is_refused_above_it() {
+        let registry = Registry::default();
+        assert_eq!(
+            registry.feed_override("lathe", FeedAsk::Percent(90)),
+            Err(FeedError::Run(RunError::NotRunning("lathe".into())))
+        );
+        let (control, mut commands) = control();
+        control.set_feed_cap(cap());
+        let id = registry
+            .begin(view("lathe"), control, Vec::new(), Arc::new(()))
+            .unwrap();
+        let feed = |r: &Registry| r.views()[0].feed.clone().unwrap();
+        assert_eq!(feed(&registry).cap.max_percent, 117);
+        assert_eq!(
+            (feed(&registry).asked, feed(&registry).running),
+            (100, None)
+        );
+        assert_eq!(
+            registry.feed_override("lathe", FeedAsk::Percent(90)),
+            Ok((90, None))
+        );
+        assert_eq!(commands.try_feed_override(), Some(90));
+        assert_eq!(feed(&registry).asked, 90);
+        // Above the cap: refused naming it and why, and nothing asked.
+        let above = registry
+            .feed_override("lathe", FeedAsk::Percent(118))
+            .unwrap_err();
+        assert!(
+            above.to_string().contains("above the cap of 117 %")
+                && above.to_string().contains("insert cusp"),
+            "{above}"
+        );
+        assert!(matches!(
+            registry.feed_override("lathe", FeedAsk::Percent(9)),
+            Err(FeedError::Refused(_))
+        ));
+        assert_eq!(feed(&registry).asked, 90);
+        assert_eq!(commands.try_feed_override(), None);
+        // A step past the cap is held there, saying why.
+        let (held, why) = registry.feed_override("lathe", FeedAsk::Step(40)).unwrap();
+        assert_eq!(held, 117);
+        assert!(why.unwrap().contains("held at 117 %"));
+        assert_eq!(
+            registry.feed_override("lathe", FeedAsk::Step(-10)),
+            Ok((107, None))
+        );
+        // The run's side gone: the run has ended.
+        drop(commands);
+        assert_eq!(
+            registry.feed_override("lathe", FeedAsk::Percent(100)),
+            Err(FeedError::Refused(FeedOverrideError::Ended))
+        );
+        // Ended in the registry: no run to ask.
+        registry.end("lathe", id, |_| {});
+        assert_eq!(
+            registry.feed_override("lathe", FeedAsk::Percent(100)),
+            Err(FeedError::Run(RunError::NotRunning("lathe".into())))
+        );
+        // A run without a cap takes no override, and its view offers none.
+        let (control, _commands) = crate::transport::control();
+        registry
+            .begin(view("lathe"), control, Vec::new(), Arc::new(()))
+            .unwrap();
+        assert_eq!(registry.views()[0].feed, None);
+        assert_eq!(
+            registry.feed_override("lathe", FeedAsk::Percent(100)),
+            Err(FeedError::Refused(FeedOverrideError::NoCap))
+        );
     }
 
     #[test]

@@ -20,6 +20,7 @@
 use crate::config::machine::MachineProfile;
 use crate::judge::{cycles, simulator};
 use crate::log::{self, ExecLog};
+use crate::program::Move;
 
 use crate::transport::can::{stream_can, CanClock, CanLink, CanOptions};
 use crate::transport::link::can_bus;
@@ -337,6 +338,7 @@ async fn resume_can(
         session,
         sample: SampleConfig::for_drives(machine, &drives),
         clock: CanClock::SyncLocked,
+        pace: Some(options.time_scale),
         answer_timeout: Duration::from_secs(5),
         program: posted.name.clone(),
         on_progress: options.progress,
@@ -352,7 +354,14 @@ async fn resume_can(
     let started = Instant::now();
     let mut sim_log = log.clone();
     let mut merger = cycles::Merger::new(counts_per_unit);
-    let stretch = |log: &mut ExecLog, s: cycles::Stretch| executed(log, started, &s.block());
+    let positioning = Positioning::of(&pickup, counts_per_unit[0]);
+    let stretch = |log: &mut ExecLog, s: cycles::Stretch| {
+        let mut block = s.block();
+        if positioning.is(&s) {
+            block.kind = MoveKind::Rapid;
+        }
+        executed(log, started, &block)
+    };
     let served = serve_slcan(master, Arc::clone(&bus), serve_options, |event| {
         if let BusEvent::Executed(block) = event {
             if let Some(s) = merger.push(block) {
@@ -376,6 +385,41 @@ async fn resume_can(
     result
 }
 
+/// Which of a CAN resume's stretches are positioning: those with the ring at the program's
+/// clear X from end to end. A CiA 402 drive knows no rapids, so the drives' record does
+/// not say; but the re-entry's own premise is that the ring at the clear X cuts nothing
+/// ([`crate::program::reentry`]), and there it turns C back to the resume line's start (the
+/// drives may have stood past it), which is no cut. Logged as rapids, they are left out of
+/// the measured cut as a G-code resume's `G0` is.
+struct Positioning {
+    /// The program's clear X, if the resume re-enters from it.
+    clear: Option<f64>,
+    /// A count of X, mm: how near the clear X the drives stand there.
+    tolerance: f64,
+}
+
+impl Positioning {
+    /// For the resume `pickup` on drives with `x_counts` counts a mm.
+    fn of(pickup: &Pickup, x_counts: f64) -> Positioning {
+        let clear = match pickup.approach().first() {
+            Some(Move::Rapid { x: Some(x), .. }) => Some(*x),
+            _ => None,
+        };
+        Positioning {
+            clear,
+            // A count, and a hair for the floating point of the units (as the merger's).
+            tolerance: 1.000_001 / x_counts,
+        }
+    }
+
+    fn is(&self, stretch: &cycles::Stretch) -> bool {
+        self.clear.is_some_and(|x| {
+            (stretch.from[0] - x).abs() <= self.tolerance
+                && (stretch.to[0] - x).abs() <= self.tolerance
+        })
+    }
+}
+
 /// Runs the simulator's side until the bridge's has finished and gives the bridge's
 /// result; the simulator ending first is an error.
 async fn until_streamed(
@@ -388,5 +432,51 @@ async fn until_streamed(
         ended = &mut served => Err(ResumeError::Simulator(ended.err().unwrap_or_else(|| {
             std::io::Error::other("the simulator stopped serving")
         }))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Lead-in (clear X 0, C, Z, spindle, plunge to X 18), three linked moves along a helix
+    /// of lead 10 mm, lead-out; the lines as a post writes them.
+    const PROGRAM: &str = "G90 G21\nG0 X0\nG0 C0\nG0 Z0\nM3 S2500\nG1 X18 F50\n\
+                           G93 G1 X18.1 Z2.5 C90 F100\nG1 X18.2 Z5 C180 F100\n\
+                           G1 X18.3 Z7.5 C270 F100\nG94 G0 X0\nM5\nM2\n";
+
+    fn stretch(from: [f64; 3], to: [f64; 3]) -> cycles::Stretch {
+        cycles::Stretch {
+            times: [0.0, 1.0],
+            from,
+            to,
+            cycles: 250,
+            line: 1,
+        }
+    }
+
+    #[test]
+    fn a_can_resume_positions_at_the_clear_x_and_cuts_everywhere_else() {
+        let machine = MachineProfile::builtin_sim().unwrap();
+        let posted = Posted::read("p.nc", PROGRAM, &machine).unwrap();
+        // Resumed at the second linked move (line 8, 0-based 7): the drives stood past its
+        // start, at C 200°, and the approach turns C back there with the ring clear.
+        let pickup = Pickup::resuming(&posted, 7).unwrap();
+        let positioning = Positioning::of(&pickup, 10_000.0);
+        assert_eq!(positioning.clear, Some(0.0));
+        assert!(positioning.is(&stretch([0.0, 5.5, 200.0], [0.0, 2.5, 90.0])));
+        // Within a count of the clear X, still there.
+        assert!(positioning.is(&stretch([0.00009, 5.5, 200.0], [-0.00009, 2.5, 90.0])));
+        // Out of the groove to the clear X, in at the plunge, and the cut: not positioning.
+        assert!(!positioning.is(&stretch([18.2, 5.5, 200.0], [0.0, 5.5, 200.0])));
+        assert!(!positioning.is(&stretch([0.0, 2.5, 90.0], [18.1, 2.5, 90.0])));
+        assert!(!positioning.is(&stretch([18.1, 2.5, 90.0], [18.2, 5.0, 180.0])));
+        // Two counts off the clear X is somewhere else.
+        assert!(!positioning.is(&stretch([0.0002, 5.5, 200.0], [0.0002, 2.5, 90.0])));
+        // Resumed at the program's first move (line 2, 0-based 1), the program itself
+        // positions: no approach, so nothing is judged positioning by the clear X.
+        let first = Positioning::of(&Pickup::resuming(&posted, 1).unwrap(), 10_000.0);
+        assert_eq!(first.clear, None);
+        assert!(!first.is(&stretch([0.0, 0.0, 0.0], [0.0, 0.0, 90.0])));
     }
 }

@@ -17,8 +17,10 @@ use super::token::Token;
 use crate::config::job::Job;
 use crate::config::machine::MachineProfile;
 use crate::judge::dry_run::{self, DryRunOptions};
-use crate::log::{Event, ExecLog, Record};
+use crate::log::{Event, ExecLog, FeedOverrideState, Record};
+use crate::plan::overrides::FeedCap;
 use crate::records::{Ending, FileSnapshot, NoteKind, Outcome, RunId, Store};
+use crate::transport::control::override_range;
 use crate::transport::{
     self, Commands, Link, Posted, Progress, ProgressFn, RunOptions, TransportKind,
 };
@@ -138,6 +140,9 @@ struct RunInputs {
     job_file: Option<FileSnapshot>,
     /// The plan report (JSON), for the records.
     plan_report: Option<String>,
+    /// The feed overrides the run may take ([`FeedCap`]); `None` on a transport whose
+    /// controller takes its override from its own panel.
+    feed_cap: Option<FeedCap>,
     posted: Posted,
     transport: TransportKind,
     time_scale: f64,
@@ -285,11 +290,14 @@ impl Console {
                     .map_err(|e| StartError::Preflight(e.to_string()))?;
             }
         }
+        // The overrides the transport's controller takes, up to the cusp's cap.
+        let feed_cap = override_range(kind).map(|range| FeedCap::of(&plan.report, range));
         let inputs = Arc::new(RunInputs {
             job_name: request.job.clone(),
             job,
             job_file: Some(FileSnapshot::of(path.display().to_string(), &bytes)),
             plan_report: serde_json::to_string(&plan.report).ok(),
+            feed_cap,
             posted,
             transport: kind,
             time_scale: if link.is_some() {
@@ -329,6 +337,9 @@ impl Console {
         let holder = format!("{}, console run of {}", self.holder, inputs.job_name);
         let lock = MachineLock::acquire(&self.lock_dir, &super::machine_key(profile), &holder)?;
         let (control, commands) = transport::control();
+        if let Some(cap) = &inputs.feed_cap {
+            control.set_feed_cap(cap.clone());
+        }
         let transport = match &inputs.link {
             Some(link) => format!("{} to the machine ({link})", inputs.transport.name()),
             None => inputs.transport.name().to_owned(),
@@ -629,8 +640,15 @@ impl LogReader {
         let mut words = Vec::new();
         let mut alarms = Vec::new();
         let mut resume = None;
+        let mut running = None;
         for record in new {
             match &record.event {
+                // Not taken, the transport says why in a message beside it.
+                Event::FeedOverride {
+                    percent,
+                    state: FeedOverrideState::Running,
+                } => running = Some(*percent),
+
                 Event::Executed { .. } => executed.push(record.clone()),
                 Event::Alarm { code, message } => alarms.push(format!("ALARM:{code} {message}")),
                 Event::Error {
@@ -659,7 +677,7 @@ impl LogReader {
         if !executed.is_empty() {
             registry.cut(&self.machine, self.id, executed);
         }
-        if !(words.is_empty() && alarms.is_empty() && resume.is_none()) {
+        if !(words.is_empty() && alarms.is_empty() && resume.is_none() && running.is_none()) {
             registry.update(&self.machine, self.id, |v| {
                 v.alarms.extend(alarms);
                 for text in words {
@@ -667,6 +685,9 @@ impl LogReader {
                 }
                 if resume.is_some() {
                     v.resume = resume;
+                }
+                if let (Some(feed), Some(percent)) = (v.feed.as_mut(), running) {
+                    feed.running = Some(percent);
                 }
             });
         }
@@ -788,6 +809,54 @@ mod tests {
             "{error}"
         );
         assert!(console.registry.views().is_empty());
+    }
+
+    #[test]
+    fn the_override_the_controller_reports_running_reaches_the_view_and_asked_does_not() {
+        let dir = tempfile::tempdir().unwrap();
+        let console = console(dir.path());
+        let (control, _commands) = transport::control();
+        control.set_feed_cap(FeedCap::new(
+            0.01,
+            0.0085,
+            0.004,
+            crate::plan::overrides::GRBL,
+        ));
+        let view = RunView::new("lathe", "t/job.toml", "serial", 1.0);
+        let id = console
+            .registry
+            .begin(view, control, Vec::new(), Arc::new(()))
+            .unwrap();
+        let log = ExecLog::memory();
+        let mut reader = LogReader {
+            console: Arc::clone(&console),
+            machine: "lathe".into(),
+            id,
+            log: log.clone(),
+            read: 0,
+            last: Instant::now(),
+        };
+        let running = |c: &Console| c.registry.views()[0].feed.as_ref().unwrap().running;
+        let mut writer = log.clone();
+        let mut say = |percent, state| {
+            writer
+                .write(0.0, Event::FeedOverride { percent, state })
+                .unwrap()
+        };
+        // Asked is not running: the controller has not said so.
+        say(80, FeedOverrideState::Asked);
+        reader.read_log();
+        assert_eq!(running(&console), None);
+        // grbl goes 100 → 80 in two bytes (−10 each), reporting each value it runs at; the
+        // last report counts.
+        say(90, FeedOverrideState::Running);
+        say(80, FeedOverrideState::Running);
+        reader.read_log();
+        assert_eq!(running(&console), Some(80));
+        // Not taken: what runs stays what the controller last reported.
+        say(70, FeedOverrideState::NotTaken);
+        reader.read_log();
+        assert_eq!(running(&console), Some(80));
     }
 
     #[test]

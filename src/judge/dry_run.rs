@@ -50,7 +50,9 @@ pub struct DryRunOptions {
     /// the Modbus register map over TCP or RTU, or set-points to CAN drives through slcan.
     pub transport: TransportKind,
     /// Simulated seconds per wall second; `None`: as fast as the host allows (for Modbus,
-    /// [`MODBUS_TIME_SCALE`]).
+    /// [`MODBUS_TIME_SCALE`]). Over CAN the drives boot at real time whatever it is, and
+    /// the cycle then runs in lockstep at no more than this scale
+    /// ([`crate::transport::can::CanOptions::pace`]).
     pub time_scale: Option<f64>,
     /// The link's baud rate, emulated in simulated time.
     pub baud: u32,
@@ -679,13 +681,14 @@ fn clear_start(program: &crate::program::Program) -> whirl_sim::Position {
 /// Simulated seconds per wall second of a CAN dry run before the cycle runs (boot-up,
 /// configuration): real time, as the drives' and the master's timeouts are set for it.
 /// Once the cycle runs, the drives' clock is the master's SYNC and the job goes as fast
-/// as the link and the simulator allow.
+/// as the link and the simulator allow, or at the dry run's time scale if it has one.
 const CAN_BOOT_TIME_SCALE: f64 = 1.0;
 
 /// The dry run on three simulated CiA 402 drives behind an slcan adapter on a
 /// pseudo-terminal, set as the profile's `drives` and `bitrate` say: whirl's CANopen
 /// master streams the set-points through the adapter in lockstep with the drives' SYNC
-/// clock ([`crate::transport::can::CanClock::SyncLocked`]), and the Δ guard judges the
+/// clock ([`crate::transport::can::CanClock::SyncLocked`]), paced at the time scale if
+/// one is given (a watched run: a console's), and the Δ guard judges the
 /// cycles the drives executed, merged into the straight stretches they make up
 /// ([`crate::judge::cycles`]). The log gets the master's events and the same stretches.
 ///
@@ -705,6 +708,7 @@ async fn over_can(
     use whirl_sim::canopen::{Bus, BusConfig, BusEvent};
 
     let (name, program) = (posted.name.as_str(), &posted.program);
+    let time_scale = options.time_scale;
     let mut session = SessionConfig {
         hold_ramp: machine.stop_time(),
         ..SessionConfig::for_drives(drives)?
@@ -739,6 +743,7 @@ async fn over_can(
         session,
         sample: SampleConfig::for_drives(machine, drives),
         clock: CanClock::SyncLocked,
+        pace: time_scale,
         answer_timeout: Duration::from_secs(5),
         program: name.to_owned(),
         on_progress: options.progress,

@@ -26,7 +26,9 @@
 //! the session's time, begun as soon as the adapter has acknowledged the frames of all
 //! but the last eight cycles. A job of hours then runs as fast as the link and the
 //! simulator go, with both ends agreeing on every cycle. It needs the adapter's
-//! acknowledgements, so slcan only.
+//! acknowledgements, so slcan only. [`CanOptions::pace`] holds such a run to a time scale
+//! (a console's dry run that an operator watches, holds and stops): a cycle begins no
+//! sooner than its session time over the scale, in wall time, after the first SYNC.
 //!
 //! Every frame is sent as the session gives it; the log gets the session's events (boot-up,
 //! configuration, enable, spindle marks, emergencies, the stop and its reason), not the
@@ -123,12 +125,17 @@ pub struct CanOptions {
     pub sample: SampleConfig,
     /// The session's clock.
     pub clock: CanClock,
+    /// With [`CanClock::SyncLocked`]: at most this many session seconds a wall second once
+    /// the cycle runs (finite, above zero); `None`: as fast as the link and the drives go.
+    /// The wall clock is real time, and ignores it.
+    pub pace: Option<f64>,
     /// Longest wait, wall time, for the adapter to answer a command and for a drive to
     /// answer the position read.
     pub answer_timeout: Duration,
     /// What is run, for the log.
     pub program: String,
-    /// Told how far the run is: about once a second of machine time, and at its end.
+    /// Told how far the run is: once a second of the session's time, held or not, and at
+    /// its end.
     pub on_progress: Option<ProgressFn>,
     /// The caller's hold, resume, stop and abort: the set-points slowed along the path to
     /// a stand and brought back up to speed, the same stand then the drives disabled, or a
@@ -233,6 +240,12 @@ pub enum CanError {
     /// A SYNC-locked clock needs the adapter's acknowledgements.
     #[error("a SYNC-locked clock needs an slcan adapter's acknowledgements; {0} has none")]
     Lockstep(String),
+    /// A pace that is no time scale.
+    #[error(
+        "a SYNC-locked clock's pace of {0} session seconds a wall second: it must be finite \
+         and above zero"
+    )]
+    Pace(f64),
     /// The executed-path log. Once the session ran, the drives were stopped (the gentle
     /// stop, [`Session::stop_held`]) before the run ended with this.
     #[error(transparent)]
@@ -490,6 +503,11 @@ struct Clock {
     started: Instant,
     /// Once locked to the cycle: the session's time now.
     locked: Option<Duration>,
+    /// A SYNC-locked clock's time scale ([`CanOptions::pace`]).
+    pace: Option<f64>,
+    /// The wall instant and the session's time of the first locked cycle: the pace's
+    /// origin.
+    paced_from: Option<(Instant, Duration)>,
 }
 
 impl Clock {
@@ -498,10 +516,19 @@ impl Clock {
     }
 
     /// A SYNC went out at `now`: with a SYNC-locked clock, the next step is a period on.
-    fn cycle(&mut self, now: Duration, period: Duration) {
-        if self.kind == CanClock::SyncLocked {
-            self.locked = Some(now + period);
+    /// Gives the wall instant before which that step must not begin, if the clock is paced
+    /// ([`CanOptions::pace`]): the session's time since the first locked cycle over the
+    /// scale, from the instant that cycle began (so that a cycle late on a busy host is
+    /// made up, not carried).
+    fn cycle(&mut self, now: Duration, period: Duration, wall: Instant) -> Option<Instant> {
+        if self.kind != CanClock::SyncLocked {
+            return None;
         }
+        let next = now + period;
+        self.locked = Some(next);
+        let scale = self.pace?;
+        let (origin, from) = *self.paced_from.get_or_insert((wall, now));
+        Some(origin + (next - from).div_f64(scale))
     }
 }
 
@@ -514,6 +541,9 @@ pub async fn stream_can(
 ) -> Result<CanOutcome, CanError> {
     if options.clock == CanClock::SyncLocked && !matches!(link, CanLink::Slcan { .. }) {
         return Err(CanError::Lockstep(link.to_string()));
+    }
+    if let Some(scale) = options.pace.filter(|s| !(s.is_finite() && *s > 0.0)) {
+        return Err(CanError::Pace(scale));
     }
     let name = link.to_string();
     let mut port = Port::open(link, options.answer_timeout).await?;
@@ -554,6 +584,8 @@ pub async fn stream_can(
             kind: options.clock,
             started: Instant::now(),
             locked: None,
+            pace: options.pace,
+            paced_from: None,
         },
         outcome: CanOutcome {
             completed: false,
@@ -577,8 +609,7 @@ pub async fn stream_can(
         progress: Told {
             started: Instant::now(),
             report: options.on_progress.take(),
-            every: (Duration::from_secs(1).as_nanos() / period.as_nanos().max(1)).max(1) as usize,
-            last: 0,
+            last: None,
             period,
         },
     };
@@ -595,7 +626,7 @@ pub async fn stream_can(
     };
     run.outcome.completed = result.is_ok() && session.phase() == Phase::Finished;
     run.outcome.sent = session.progress().0;
-    run.progress.tell(session.progress());
+    run.progress.tell(session.progress(), run.clock.now());
     run.outcome.session_time = run.clock.now();
     let resume_move = session.resume_move();
     if !run.outcome.completed {
@@ -637,21 +668,26 @@ struct Run {
     caller: Option<Commands>,
 }
 
-/// The caller's progress display, told every `every` set-points.
+/// How often the caller's progress display is told, in the session's time.
+const PROGRESS_EVERY: Duration = Duration::from_secs(1);
+
+/// The caller's progress display, told every [`PROGRESS_EVERY`] of the session's time: by
+/// its time, not by the set-points sent, so that a held run, whose set-points stand, is told
+/// too (a console reads the run's log, where the hold's words are, when it is told).
 struct Told {
     report: Option<ProgressFn>,
-    every: usize,
-    /// Set-points sent when it was last told.
-    last: usize,
+    /// The session's time when it was last told.
+    last: Option<Duration>,
     period: Duration,
     started: Instant,
 }
 
 impl Told {
-    /// Tells the display, (sent, total) as [`Session::progress`] gives them.
-    fn tell(&mut self, (sent, total): (usize, usize)) {
+    /// Tells the display at the session's time `now`, (sent, total) as
+    /// [`Session::progress`] gives them.
+    fn tell(&mut self, (sent, total): (usize, usize), now: Duration) {
         if let Some(report) = self.report.as_mut() {
-            self.last = sent;
+            self.last = Some(now);
             report(&Progress {
                 unit: Unit::SetPoints,
                 done: sent,
@@ -666,10 +702,11 @@ impl Told {
         }
     }
 
-    /// Tells it if `every` set-points have gone since it was last told.
-    fn step(&mut self, progress: (usize, usize)) {
-        if progress.0 >= self.last + self.every {
-            self.tell(progress);
+    /// Tells it if [`PROGRESS_EVERY`] of the session's time has passed since it was last
+    /// told (or it never was).
+    fn step(&mut self, progress: (usize, usize), now: Duration) {
+        if self.last.is_none_or(|last| now >= last + PROGRESS_EVERY) {
+            self.tell(progress, now);
         }
     }
 }
@@ -713,7 +750,7 @@ impl Run {
             }
             let synced = frames.iter().any(is_sync);
             self.report(session, log);
-            self.progress.step(session.progress());
+            self.progress.step(session.progress(), now);
             if matches!(session.phase(), Phase::Finished | Phase::Stopped) {
                 return Ok(());
             }
@@ -724,7 +761,9 @@ impl Run {
                 self.in_flight.push_back(self.commands);
                 self.settle(port, name, session, now, options.answer_timeout)
                     .await?;
-                self.clock.cycle(now, period);
+                if let Some(due) = self.clock.cycle(now, period, Instant::now()) {
+                    tokio::time::sleep_until(due).await;
+                }
                 continue;
             }
             tokio::select! {
@@ -869,4 +908,119 @@ impl Run {
 
 fn is_sync(frame: &CanFrame) -> bool {
     frame.id() == CanId::Standard(0x080) && !frame.is_remote()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::machine::MachineProfile;
+    use std::sync::{Arc, Mutex};
+
+    /// What a display was told, (done, total) each time.
+    type Heard = Arc<Mutex<Vec<(usize, usize)>>>;
+
+    /// A display that keeps what it is told.
+    fn display() -> (ProgressFn, Heard) {
+        let told = Arc::new(Mutex::new(Vec::new()));
+        let keep = Arc::clone(&told);
+        let report: ProgressFn = Box::new(move |p: &Progress| {
+            keep.lock().unwrap().push((p.done, p.total));
+        });
+        (report, told)
+    }
+
+    #[test]
+    fn a_held_run_is_told_once_a_second_of_session_time_though_its_set_points_stand() {
+        let (report, told) = display();
+        let mut progress = Told {
+            report: Some(report),
+            last: None,
+            period: Duration::from_millis(4),
+            started: Instant::now(),
+        };
+        let s = Duration::from_secs_f64;
+        // The first step tells where the run starts.
+        progress.step((0, 1000), s(0.0));
+        // 250 set-points in a second at 4 ms; none told within the second.
+        progress.step((125, 1000), s(0.5));
+        progress.step((250, 1000), s(1.0));
+        // Held: the set-points stand, the session's time runs on.
+        progress.step((250, 1000), s(1.5));
+        progress.step((250, 1000), s(2.0));
+        progress.step((250, 1000), s(3.0));
+        assert_eq!(
+            *told.lock().unwrap(),
+            [(0, 1000), (250, 1000), (250, 1000), (250, 1000)]
+        );
+    }
+
+    #[test]
+    fn a_paced_clock_begins_each_cycle_at_its_session_time_over_the_scale() {
+        let period = Duration::from_millis(4);
+        let clock = |kind, pace| Clock {
+            kind,
+            started: Instant::now(),
+            locked: None,
+            pace,
+            paced_from: None,
+        };
+        let wall = Instant::now();
+        // The cycle starts after 2 s of boot on the wall: at 50 times real time a 4 ms
+        // cycle lasts 80 µs of wall time, counted from the first cycle's start.
+        let boot = Duration::from_secs(2);
+        let mut paced = clock(CanClock::SyncLocked, Some(50.0));
+        let first = paced.cycle(boot, period, wall);
+        assert_eq!(first, Some(wall + Duration::from_micros(80)));
+        assert_eq!(paced.now(), boot + period);
+        // A cycle begun late (the host busy) is due where the pace puts it, not later.
+        let late = wall + Duration::from_millis(10);
+        let second = paced.cycle(paced.now(), period, late);
+        assert_eq!(second, Some(wall + Duration::from_micros(160)));
+        // Unpaced: the next cycle is a period on in the session's time, at once.
+        let mut free = clock(CanClock::SyncLocked, None);
+        assert_eq!(free.cycle(boot, period, wall), None);
+        assert_eq!(free.now(), boot + period);
+        // The wall clock is real time: neither locked nor paced.
+        let mut real = clock(CanClock::Wall, Some(50.0));
+        assert_eq!(real.cycle(boot, period, wall), None);
+        assert_eq!(real.locked, None);
+    }
+
+    #[tokio::test]
+    async fn a_pace_that_is_no_time_scale_is_refused_before_anything_is_opened() {
+        let machine = MachineProfile::load(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/machine-profiles/canopen-drives.toml"
+        )))
+        .unwrap();
+        let (drives, bitrate) = crate::transport::link::can_bus(&machine).unwrap();
+        // Never opened: the pace is refused first.
+        let link = CanLink::Slcan {
+            path: "no-adapter-here".into(),
+            baud: 115_200,
+            bitrate,
+        };
+        for pace in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let options = CanOptions {
+                session: SessionConfig::for_drives(&drives).unwrap(),
+                sample: SampleConfig::for_drives(&machine, &drives),
+                clock: CanClock::SyncLocked,
+                pace: Some(pace),
+                answer_timeout: Duration::from_secs(1),
+                program: "p".into(),
+                on_progress: None,
+                commands: None,
+            };
+            let error = stream_can(
+                &link,
+                &Program { moves: Vec::new() },
+                options,
+                &mut ExecLog::discard(),
+            )
+            .await
+            .unwrap_err();
+            assert!(matches!(error, CanError::Pace(_)), "{pace}: {error}");
+            assert!(error.to_string().contains("finite and above zero"));
+        }
+    }
 }

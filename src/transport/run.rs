@@ -318,6 +318,8 @@ impl StreamError {
 /// that a move the run stops at can be told as a line to resume at.
 pub(crate) struct Pickup {
     pub(crate) program: Program,
+    /// How many of [`Pickup::program`]'s first moves are the approach.
+    approach: usize,
     /// The program line (0-based) of each move; the approach's is the resume line's.
     lines: Vec<usize>,
     /// One past the program's last line: where a run that ran every move would resume.
@@ -342,15 +344,23 @@ impl Pickup {
         let lines = std::iter::repeat_n(line.unwrap_or(0), approach.len())
             .chain(posted.move_lines[from..].iter().map(|&l| l - 1))
             .collect();
+        let approach_len = approach.len();
         let mut program = Program { moves: approach };
         program
             .moves
             .extend_from_slice(&posted.program.moves[from..]);
         Pickup {
             program,
+            approach: approach_len,
             lines,
             end: posted.lines.len(),
         }
+    }
+
+    /// The approach that re-enters where the run picks the program up (empty where the
+    /// program's own moves lead there; [`crate::program::reentry::approach`]).
+    pub(crate) fn approach(&self) -> &[Move] {
+        &self.program.moves[..self.approach]
     }
 
     /// The program line of move `index` of [`Pickup::program`].
@@ -460,6 +470,7 @@ pub async fn stream(
                     },
                     sample: SampleConfig::for_drives(machine, drives),
                     clock: CanClock::Wall,
+                    pace: None,
                     answer_timeout: Duration::from_secs(1),
                     program: name,
                     on_progress: options.progress,

@@ -27,7 +27,13 @@ async function api(path, body) {
   };
   const response = await fetch(path, init);
   const text = await response.text();
-  const data = text ? JSON.parse(text) : null;
+  let data = null;
+  try {
+    data = text ? JSON.parse(text) : null;
+  } catch {
+    // A request the server could not read is answered in plain words (axum's).
+    data = { error: text };
+  }
   if (!response.ok) throw new Error(data && data.error ? data.error : response.statusText);
   return data;
 }
@@ -121,6 +127,7 @@ function render() {
     " mm, undercut " + mm(v.measured.max_undercut_mm) + " mm (Δ " + v.measured.delta_mm + " mm)" : "–";
   $("run-alarms").replaceChildren(...v.alarms.map((a) => Object.assign(document.createElement("li"), { textContent: a })));
   $("run-messages").replaceChildren(...v.messages.map((m) => Object.assign(document.createElement("li"), { textContent: m })));
+  renderFeed(v, running);
   const offer = !running && v.resume && !v.completed;
   $("resume-offer").hidden = !offer;
   if (offer) {
@@ -129,6 +136,51 @@ function render() {
     $("btn-resume-at").textContent = "Resume at line " + v.resume.line;
   }
   groove(v);
+}
+
+// The feed override: offered from the controller's slowest up to the run's cap (the
+// insert cusp within its share of Δ, or the controller's fastest), the cap's reason beside
+// it, and the override the controller reports running at.
+let feedShown = null;
+
+function renderFeed(v, running) {
+  const f = v.feed;
+  $("feed").hidden = !f;
+  if (!f) return;
+  for (const id of ["feed-percent", "feed-set", "feed-down", "feed-reset", "feed-up"]) {
+    $(id).disabled = !running;
+  }
+  const input = $("feed-percent");
+  input.min = f.cap.min_percent;
+  input.max = f.cap.max_percent;
+  // The value asked into the box when it changes, not while the operator types; another
+  // run's refusal or note cleared.
+  const run = v.machine + "#" + v.id;
+  if (feedShown === null || !feedShown.startsWith(run + ":")) {
+    $("feed-error").textContent = "";
+    $("feed-note").textContent = "";
+  }
+  const shown = run + ":" + f.asked;
+  if (feedShown !== shown) {
+    input.value = f.asked;
+    feedShown = shown;
+  }
+  $("feed-cap").textContent = "Offered from " + f.cap.min_percent + " % up to the cap of " +
+    f.cap.max_percent + " %: " + f.cap.reason;
+  $("feed-running").textContent = f.running !== null ?
+    "in effect: " + f.running + " % (as the controller reports)" :
+    (f.asked === 100 ? "none asked" : "asked " + f.asked + " %, not yet reported running");
+}
+
+async function feed(ask) {
+  $("feed-error").textContent = "";
+  $("feed-note").textContent = "";
+  try {
+    const r = await api("/api/runs/" + encodeURIComponent($("run-machine").value) + "/feed-override", ask);
+    if (r.held) $("feed-note").textContent = r.held;
+  } catch (e) {
+    $("feed-error").textContent = e.message;
+  }
 }
 
 async function groove(v) {
@@ -269,6 +321,10 @@ async function main() {
   $("btn-resume").onclick = () => press("resume");
   $("btn-stop").onclick = () => press("stop");
   $("btn-resume-at").onclick = () => press("resume-at");
+  $("feed-set").onclick = () => feed({ percent: Number($("feed-percent").value) });
+  $("feed-down").onclick = () => feed({ step: -10 });
+  $("feed-reset").onclick = () => feed({ percent: 100 });
+  $("feed-up").onclick = () => feed({ step: 10 });
   const events = new EventSource("/api/events");
   events.addEventListener("runs", (event) => {
     views = JSON.parse(event.data);
