@@ -226,6 +226,10 @@ pub struct SampledMove {
     /// Lengthened beyond the programmed time so that no axis exceeds its max rate (the
     /// rounding up to whole cycles aside).
     pub slowed: bool,
+    /// How much faster a feed override may run it: its duration over the time its fastest
+    /// axis takes at that axis's max rate, at least 1. Exactly 1 for a rapid, which a feed
+    /// override leaves alone (as grbl's does), and for the spindle's spin-up wait, a dwell.
+    pub speedup: f64,
 }
 
 /// A spindle command at its place in the set-points.
@@ -341,6 +345,7 @@ pub fn sample(
                         start: cycle as f64 * period,
                         duration: n as f64 * period,
                         slowed: false,
+                        speedup: 1.0,
                     });
                     spans.push((cycle, n));
                     cycle += n;
@@ -379,6 +384,10 @@ pub fn sample(
         let end = counts(config, Some(index), to)?;
         if duration > 0.0 {
             let n = cycles_of(duration);
+            let speedup = match step.action {
+                Move::Rapid { .. } => 1.0,
+                _ => (n as f64 * period / (time.fastest * 60.0)).max(1.0),
+            };
             moves.push(SampledMove {
                 index,
                 from: position,
@@ -386,6 +395,7 @@ pub fn sample(
                 start: cycle as f64 * period,
                 duration: n as f64 * period,
                 slowed,
+                speedup,
             });
             spans.push((cycle, n));
             cycle += n;

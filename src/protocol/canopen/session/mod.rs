@@ -941,9 +941,17 @@ impl Session {
                 self.stop_held(StopReason::Stalled { waited: limit }, now);
             }
         }
+        // The straight move the next step is on, and how fast a feed override may run it:
+        // never so fast that an axis exceeds its max rate (a rapid not at all). Entering a
+        // move with less room, the speed drops to it at once, as at any junction.
+        let next = self
+            .junctions
+            .partition_point(|&j| j as f64 <= self.position);
+        let room = self.setpoints.moves.get(next).map_or(1.0, |m| m.speedup);
+        self.speed = self.speed.min(room);
         let step = self.ramp_step();
         let was = self.speed;
-        let target = if self.held { 0.0 } else { self.feed };
+        let target = if self.held { 0.0 } else { self.feed.min(room) };
         self.speed = if self.speed > target {
             (self.speed - step).max(target)
         } else {
@@ -962,9 +970,6 @@ impl Session {
             }
         }
         // Up to the next junction at most: the step stays on one straight move.
-        let next = self
-            .junctions
-            .partition_point(|&j| j as f64 <= self.position);
         let junction = self.junctions.get(next).map_or(total, |&j| j.min(total));
         self.position = (self.position + self.speed).min(junction as f64);
         let point = self.path_at(self.position);

@@ -3,6 +3,7 @@
 //! the tests by topic in the sibling files.
 
 mod configuration;
+mod feed_override;
 mod gentle;
 mod hold;
 mod run;
