@@ -9,7 +9,7 @@
 //! keeps one opening for the history page and the buttons' notes.
 
 use super::registry::{Measured, ResumePoint};
-use crate::log::{Event, Record};
+use crate::log::Record;
 use crate::records::from_log::LogFacts;
 use crate::records::{
     Ending, FileSnapshot, Kind, NewRun, Note, NoteKind, Outcome, Place, ProgramId, RecordError,
@@ -93,17 +93,8 @@ pub fn complete(
     resume: Option<&ResumePoint>,
     measured: Option<Measured>,
 ) {
-    let alarms = log
-        .iter()
-        .filter_map(|r| match &r.event {
-            Event::Alarm { code, message } => Some((*code, message.clone())),
-            _ => None,
-        })
-        .collect();
-    ending.add_log(&LogFacts {
-        alarms,
-        ..LogFacts::default()
-    });
+    // What the log says beside where to resume, which the run's view knows.
+    ending.add_log(&LogFacts::of(log.to_vec(), 1));
     if ending.outcome != Outcome::Completed {
         if let Some(point) = resume {
             ending.resume_at = Some(point.line);
@@ -124,6 +115,7 @@ pub fn complete(
 mod tests {
     use super::*;
     use crate::config::machine::MachineProfile;
+    use crate::log::Event;
 
     fn posted() -> Posted {
         let machine = MachineProfile::builtin_sim().unwrap();

@@ -68,10 +68,19 @@ impl Ending {
         ending
     }
 
-    /// Adds what the run's log says: the last line known done, and the controller's
-    /// alarms if none are noted yet (a dry run's report has them with the guard's words).
+    /// Adds what the run's log says: the last line known done, the controller's alarms if
+    /// none are noted yet (a dry run's report has them with the guard's words), and every
+    /// feed override the controller ran at.
     pub fn add_log(&mut self, facts: &LogFacts) {
         self.last_line = facts.last_line;
+        self.notes
+            .extend(facts.feed_overrides.iter().map(|&percent| Note {
+                code: Some(u32::from(percent)),
+                ..Note::new(
+                    NoteKind::FeedOverride,
+                    format!("the controller ran at a feed override of {percent} %"),
+                )
+            }));
         if !self.notes.iter().any(|n| n.kind == NoteKind::Alarm) {
             let alarms = facts.alarms.iter().map(|(code, message)| Note {
                 code: Some(*code),
@@ -141,6 +150,25 @@ mod tests {
         assert!(ending.reason.unwrap().contains("line 42"));
         // LinuxCNC resumes at its own console: no line of whirl's.
         assert_eq!(ending.resume_at, None);
+    }
+
+    #[test]
+    fn every_feed_override_the_controller_ran_at_is_noted_with_its_percent() {
+        let facts = LogFacts {
+            feed_overrides: vec![120, 90],
+            ..LogFacts::default()
+        };
+        let mut ending = Ending::new(Outcome::Completed);
+        ending.add_log(&facts);
+        let noted: Vec<(NoteKind, Option<u32>)> =
+            ending.notes.iter().map(|n| (n.kind, n.code)).collect();
+        assert_eq!(
+            noted,
+            [
+                (NoteKind::FeedOverride, Some(120)),
+                (NoteKind::FeedOverride, Some(90))
+            ]
+        );
     }
 
     #[test]

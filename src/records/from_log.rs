@@ -7,7 +7,7 @@
 use std::io::{Read as _, Seek, SeekFrom};
 use std::path::Path;
 
-use crate::log::{Ended, Event, Read, Record, Summary};
+use crate::log::{Ended, Event, FeedOverrideState, Read, Record, Summary};
 
 /// What a log says of one run.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -30,6 +30,9 @@ pub struct LogFacts {
     pub last_line: Option<usize>,
     /// The alarms the controller raised, in order: code and message.
     pub alarms: Vec<(u32, String)>,
+    /// The feed overrides the controller reported running, percent, in order (each change
+    /// once).
+    pub feed_overrides: Vec<u16>,
     /// The time of its last event, seconds after it started.
     pub last_t: Option<f64>,
 }
@@ -53,7 +56,15 @@ pub fn read_run(path: &Path, offset: u64, from_line: usize) -> std::io::Result<L
         }
         records.push(record);
     }
-    Ok(facts(records, from_line))
+    Ok(LogFacts::of(records, from_line))
+}
+
+impl LogFacts {
+    /// The facts of one run's events, for a run that started at program line `from_line`
+    /// (1-based).
+    pub fn of(records: Vec<Record>, from_line: usize) -> LogFacts {
+        facts(records, from_line)
+    }
 }
 
 /// The facts of one run's events.
@@ -70,6 +81,12 @@ fn facts(records: Vec<Record>, from_line: usize) -> LogFacts {
             } => executed = Some(executed.map_or(*line, |e: usize| e.max(*line))),
             Event::Sent { line, .. } => sent = Some(sent.map_or(*line, |s: usize| s.max(*line))),
             Event::Alarm { code, message } => facts.alarms.push((*code, message.clone())),
+            Event::FeedOverride {
+                percent,
+                state: FeedOverrideState::Running,
+            } if facts.feed_overrides.last() != Some(percent) => {
+                facts.feed_overrides.push(*percent)
+            }
             _ => {}
         }
     }
@@ -218,6 +235,25 @@ mod tests {
         assert_eq!(facts.reason.as_deref(), Some("ALARM:64"));
         assert_eq!((facts.resume_at, facts.possibly_run_to), (Some(2), None));
         assert_eq!(facts.alarms, vec![(64, "beyond Δ".to_owned())]);
+    }
+
+    #[test]
+    fn the_feed_overrides_the_controller_ran_at_are_read_once_each_not_those_only_asked() {
+        let dir = tempfile::tempdir().unwrap();
+        let feed = |percent, state| Event::FeedOverride { percent, state };
+        let run = vec![
+            start(),
+            feed(150, FeedOverrideState::Asked),
+            feed(150, FeedOverrideState::Running),
+            // grbl reports its override in every status: the same value again.
+            feed(150, FeedOverrideState::Running),
+            feed(190, FeedOverrideState::Asked),
+            feed(190, FeedOverrideState::NotTaken),
+            feed(90, FeedOverrideState::Running),
+        ];
+        let (path, offset) = log_with(dir.path(), vec![], run);
+        let facts = read_run(&path, offset, 1).unwrap();
+        assert_eq!(facts.feed_overrides, [150, 90]);
     }
 
     #[test]

@@ -82,6 +82,9 @@ pub enum NoteKind {
     Resume,
     /// The run stopped: [`Note::line`] is where it resumes.
     Stop,
+    /// The controller ran at a new feed override ([`Note::code`]: percent): faster than
+    /// planned coarsens the insert cusp, so the record says every value a part was cut at.
+    FeedOverride,
 }
 
 macro_rules! words {
@@ -129,6 +132,7 @@ words!(NoteKind {
     Hold = "hold",
     Resume = "resume",
     Stop = "stop",
+    FeedOverride = "feed-override",
 });
 
 /// A file a run read, as it read it.
@@ -437,6 +441,7 @@ mod tests {
             NoteKind::Hold,
             NoteKind::Resume,
             NoteKind::Stop,
+            NoteKind::FeedOverride,
         ] {
             assert_eq!(NoteKind::from_word(kind.as_str()), Some(kind));
         }
