@@ -331,6 +331,9 @@ fn the_feed_override_needs_the_token_a_run_and_a_value_within_the_cap() {
     let step = serve.post(&path, &token, r#"{"step": -1000}"#);
     assert_eq!(step.status, 200, "{}", step.body);
     assert_eq!(step.json()["percent"], 10);
+    wait_for(Duration::from_secs(60), "the controller at 10 %", || {
+        view(&serve)["feed"]["running"] == 10
+    });
     assert!(
         step.json()["held"]
             .as_str()
@@ -350,6 +353,18 @@ fn the_feed_override_needs_the_token_a_run_and_a_value_within_the_cap() {
         view(&serve)["phase"] == "ended"
     });
     assert_eq!(serve.post(&path, &token, &ask(90)).status, 409);
+    // The run's record says every override the controller ran at, in order: 90 %, then
+    // grbl's 10 % steps (0x92, each read back from Ov:) down to 10 %.
+    let record = view(&serve)["record"].as_i64().expect("recorded");
+    let run = serve.get(&format!("/api/history/{record}")).json();
+    let overrides: Vec<i64> = run["notes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|n| n["kind"] == "feed-override")
+        .map(|n| n["code"].as_i64().unwrap())
+        .collect();
+    assert_eq!(overrides, [90, 80, 70, 60, 50, 40, 30, 20, 10], "{run}");
 }
 
 fn wait_for(limit: Duration, what: &str, mut done: impl FnMut() -> bool) {

@@ -30,8 +30,8 @@ pub struct LogFacts {
     pub last_line: Option<usize>,
     /// The alarms the controller raised, in order: code and message.
     pub alarms: Vec<(u32, String)>,
-    /// The feed overrides the controller reported running, percent, in order (each change
-    /// once).
+    /// The feed overrides the controller reported running, percent, in order: each change
+    /// from the planned feed (100 %) on, once.
     pub feed_overrides: Vec<u16>,
     /// The time of its last event, seconds after it started.
     pub last_t: Option<f64>,
@@ -81,10 +81,11 @@ fn facts(records: Vec<Record>, from_line: usize) -> LogFacts {
             } => executed = Some(executed.map_or(*line, |e: usize| e.max(*line))),
             Event::Sent { line, .. } => sent = Some(sent.map_or(*line, |s: usize| s.max(*line))),
             Event::Alarm { code, message } => facts.alarms.push((*code, message.clone())),
+            // Changes from the planned feed (100 %) on.
             Event::FeedOverride {
                 percent,
                 state: FeedOverrideState::Running,
-            } if facts.feed_overrides.last() != Some(percent) => {
+            } if *facts.feed_overrides.last().unwrap_or(&100) != *percent => {
                 facts.feed_overrides.push(*percent)
             }
             _ => {}
@@ -238,11 +239,13 @@ mod tests {
     }
 
     #[test]
-    fn the_feed_overrides_the_controller_ran_at_are_read_once_each_not_those_only_asked() {
+    fn the_feed_overrides_the_controller_ran_at_are_read_as_they_change_not_those_only_asked() {
         let dir = tempfile::tempdir().unwrap();
         let feed = |percent, state| Event::FeedOverride { percent, state };
         let run = vec![
             start(),
+            // The controller's first report: the planned feed, no change.
+            feed(100, FeedOverrideState::Running),
             feed(150, FeedOverrideState::Asked),
             feed(150, FeedOverrideState::Running),
             // grbl reports its override in every status: the same value again.

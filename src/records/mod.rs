@@ -316,7 +316,7 @@ pub struct Note {
     pub at: Option<String>,
     /// The program line it concerns (1-based): where a stop resumes, where a hold held.
     pub line: Option<usize>,
-    /// An alarm's code.
+    /// An alarm's code; a feed override's percent.
     pub code: Option<u32>,
     /// In words.
     pub text: String,
