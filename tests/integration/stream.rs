@@ -296,7 +296,21 @@ fn whirl_stream_runs_a_program_on_whirl_sims_can_drives_through_slcan() {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("slcan");
     let sim_log = dir.path().join("sim.jsonl");
-    let profile = util::root().join("machine-profiles/canopen-drives.toml");
+    // The example drives, their heartbeat watched for a second rather than 150 ms: the
+    // bridge and the simulator are two processes of a test host that a loaded test run may
+    // pause for longer than any bus would (a lost heartbeat is tested in can_wire).
+    let example = util::root().join("machine-profiles/canopen-drives.toml");
+    let text = std::fs::read_to_string(example).unwrap();
+    let watched = "heartbeat_timeout_ms = 150";
+    assert!(
+        text.contains(watched),
+        "the example profile's heartbeat timeout"
+    );
+    let profile = util::write(
+        dir.path(),
+        "drives.toml",
+        &text.replace(watched, "heartbeat_timeout_ms = 1000"),
+    );
     let _sim = Sim::serving(
         OsStr::new("--can-slcan"),
         &link,
