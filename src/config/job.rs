@@ -353,6 +353,17 @@ impl Job {
         self.groove.period()
     }
 
+    /// The job's ring tilted by `installation` radians, whatever angle the job gives.
+    pub fn ring_at(&self, installation: f64) -> Ring {
+        Ring {
+            whirling: self.tool.whirling,
+            radius: self.tool.ring_radius,
+            nose: self.tool.nose_radius,
+            installation,
+            edge_half_angle: self.tool.edge_arc_deg.unwrap_or(180.0).to_radians() / 2.0,
+        }
+    }
+
     /// The ring, with the installation angle given, or else the lead angle at the profile's
     /// mean radius, atan(|p| / ρ_mean), the ring's nominal tilt. Choosing an angle needs the
     /// planner's checks: a job that gives none is planned, and measured, with the angle of
