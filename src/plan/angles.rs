@@ -20,7 +20,7 @@
 //! rounded to it): an edge as printed, "7.107°", is the angle checked, so a job that gives
 //! it plans, and a job that gives the angle chosen plans the program `plan` makes when it
 //! chooses. The ring's clearance and the linkage table cost about a millisecond where they
-//! pass, and less where ψ turns back ([`Search`]); the interference check, which sweeps the
+//! pass, and less where ψ turns back (`Search`); the interference check, which sweeps the
 //! whole groove for every start, a few. So an edge where the table fails is bisected on the
 //! clearance and the table alone, and the interference check then run at the angle found: if
 //! it passes there, the edge is the table's; if not, it is bisected again on the whole check,
@@ -533,8 +533,8 @@ pub enum AngleOrigin {
 /// The ring `plan` plans with, and where its angle comes from: the job's, or, if it gives
 /// none, the angle with the largest margin in the windows.
 pub fn ring(job: &Job) -> Result<(Ring, AngleOrigin), NoWindow> {
-    if job.tool.installation_angle_deg.is_some() {
-        return Ok((job.ring(), AngleOrigin::Given));
+    if let Some(deg) = job.tool.installation_angle_deg {
+        return Ok((job.ring_at(deg.to_radians()), AngleOrigin::Given));
     }
     let found = windows(job)?;
     let (window, deg) = found.best();
