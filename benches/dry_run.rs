@@ -80,6 +80,7 @@ fn run(name: &str, profile: &str, transport: TransportKind) -> DryRunReport {
     let report = runtime
         .block_on(dry_run(
             &job,
+            plan.ring,
             &machine,
             &posted,
             options,

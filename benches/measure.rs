@@ -13,7 +13,7 @@ use whirl::config::machine::MachineProfile;
 use whirl::geometry::linkage::{Linkage, Ring};
 use whirl::geometry::profile::surface_normal;
 use whirl::judge::fit;
-use whirl::judge::measure::{Motion, Target};
+use whirl::judge::measure::Target;
 use whirl::judge::section::{self, SectionTarget};
 
 fn main() {
@@ -26,10 +26,10 @@ fn job() -> Job {
 
 /// The job's program and the section its part has, cut with the ring off the job's, as a
 /// CMM file of `count` points (those clear of the profile's edges).
-fn cut(job: &Job, count: usize) -> (Motion, String) {
+fn cut(job: &Job, count: usize) -> (fit::Cut, String) {
     let machine = MachineProfile::builtin_sim().unwrap();
-    let motion = fit::motion(job, &machine, None).unwrap();
-    let ring = job.ring();
+    let cut = fit::motion(job, &machine, None).unwrap();
+    let ring = cut.ring;
     let real = Ring {
         radius: ring.radius + 0.02,
         installation: ring.installation + 0.3f64.to_radians(),
@@ -68,14 +68,14 @@ fn cut(job: &Job, count: usize) -> (Motion, String) {
         let j = ((z_mid + p * phi) / pitch).round();
         let zu = -p * phi + j * pitch;
         let start = (-(j as i64)).rem_euclid(i64::from(job.groove.starts)) as u32;
-        let error = tool.error_at_u(&motion, u, start, zu);
+        let error = tool.error_at_u(&cut.motion, u, start, zu);
         let n = surface_normal(point.pos, point.tangent, p);
         let radial = point.pos.normalize();
         let in_plane = DVec2::new(n.x * radial.x + n.y * radial.y, n.z);
         let q = DVec2::new(point.pos.length(), zu) + in_plane / in_plane.length().powi(2) * error;
         csv.push_str(&format!("{:.4},{:.4}\n", q.x, q.y));
     }
-    (motion, csv)
+    (cut, csv)
 }
 
 /// Reading the file and finding every point's foot and deviation.
@@ -94,12 +94,12 @@ fn deviations(bencher: Bencher, points: usize) {
 #[divan::bench(args = [50, 200], sample_count = 3)]
 fn fit_tool(bencher: Bencher, points: usize) {
     let job = job();
-    let (motion, csv) = cut(&job, points);
+    let (cut, csv) = cut(&job, points);
     let measured = section::read(&csv, &[]).unwrap();
     let d = SectionTarget::new(&job, measured.frame.plane)
         .deviations(&measured)
         .unwrap();
-    let once = fit::fit(&job, &motion, &d.points).unwrap();
+    let once = fit::fit(&job, &cut, &d.points).unwrap();
     eprintln!(
         "{} points: ring radius {:.5} ± {:.5} mm, angle {:.4} ± {:.4}°, {} steps",
         once.points,
@@ -109,5 +109,5 @@ fn fit_tool(bencher: Bencher, points: usize) {
         once.installation_angle_deg.standard_error,
         once.steps
     );
-    bencher.bench(|| black_box(fit::fit(&job, &motion, &d.points).unwrap().steps));
+    bencher.bench(|| black_box(fit::fit(&job, &cut, &d.points).unwrap().steps));
 }

@@ -82,13 +82,13 @@ fn plan_example(bencher: Bencher, name: &str) {
     });
 }
 
-/// `whirl plan` of the jobs that leave the installation angle to the planner, at the angle
-/// they were planned at before it searched the window of angles for one (the lead angle at
-/// the mean radius): the node choice and its measurement without the search.
+/// `whirl plan` of the jobs that leave the installation angle to the planner, given the angle
+/// the planner chooses (the middle of the window): the node choice and its measurement
+/// without the window's search.
 #[divan::bench(args = ["double-start", "ball-screw"], sample_count = 10)]
 fn plan_at_given_angle(bencher: Bencher, name: &str) {
     let mut job = example(name);
-    job.tool.installation_angle_deg = Some(job.ring().installation.to_degrees());
+    job.tool.installation_angle_deg = Some(whirl::plan::angles::windows(&job).unwrap().best().1);
     let machine = MachineProfile::builtin_sim().unwrap();
     bencher.bench(|| {
         black_box(

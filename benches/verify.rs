@@ -16,9 +16,9 @@ fn verify_100mm_ball_screw(bencher: Bencher) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/ball-screw/job.toml");
     let job = Job::load(&path).unwrap();
     let machine = MachineProfile::builtin_sim().unwrap();
-    let text = whirl::plan::plan(&job, &machine).unwrap().text;
+    let plan = whirl::plan::plan(&job, &machine).unwrap();
     bencher.bench(|| {
-        let v = whirl::judge::verify::verify(&job, &machine, &text, false).unwrap();
+        let v = whirl::judge::verify::verify(&job, plan.ring, &machine, &plan.text, false).unwrap();
         black_box(v.max_undercut_mm)
     });
 }

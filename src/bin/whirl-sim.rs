@@ -397,10 +397,14 @@ impl AsyncWrite for Hangup<'_> {
     }
 }
 
-/// The Δ guard of the job at `path`: the groove it measures the executed motion against.
+/// The Δ guard of the job at `path`: the groove it measures the executed motion against, cut
+/// by the ring `whirl plan` plans the job with.
 fn delta_guard(path: &Path, profile: &MachineProfile) -> Result<DeltaGuard> {
     let job = whirl::config::job::Job::load(path)?;
-    DeltaGuard::new(&job, profile).with_context(|| format!("cannot measure {}", path.display()))
+    let (ring, _) = whirl::plan::angles::ring(&job)
+        .with_context(|| format!("cannot plan {}", path.display()))?;
+    DeltaGuard::new(&job, ring, profile)
+        .with_context(|| format!("cannot measure {}", path.display()))
 }
 
 /// Serves the profile's machine as three CANopen drives on a pseudo-terminal at `link`

@@ -353,18 +353,14 @@ impl Job {
         self.groove.period()
     }
 
-    /// The ring, with the installation angle given, or else the lead angle at the profile's
-    /// mean radius, atan(|p| / ρ_mean), the ring's nominal tilt. Choosing an angle needs the
-    /// planner's checks: a job that gives none is planned, and measured, with the angle of
-    /// largest margin in its window (`crate::plan::angles::ring`).
-    pub fn ring(&self) -> Ring {
-        let installation = match self.tool.installation_angle_deg {
-            Some(d) => d.to_radians(),
-            None => {
-                let (lo, hi) = self.profile.radius_range();
-                (self.p().abs() / ((lo + hi) / 2.0)).atan()
-            }
-        };
+    /// The job's ring tilted by `installation` radians, whatever angle the job gives.
+    ///
+    /// There is no ring of the job alone: one that gives no `installation_angle_deg` is
+    /// planned at the angle with the largest margin in its window, which only the planner's
+    /// checks find (`crate::plan::angles::ring`, which also gives the ring of a job that
+    /// gives its angle), and whatever measures a program of the job must take the ring the
+    /// program was planned with (`crate::plan::Plan::ring`).
+    pub fn ring_at(&self, installation: f64) -> Ring {
         Ring {
             whirling: self.tool.whirling,
             radius: self.tool.ring_radius,

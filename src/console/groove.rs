@@ -8,6 +8,7 @@
 //! the operator sees the cut as it grows.
 
 use crate::config::job::Job;
+use crate::geometry::linkage::Ring;
 use crate::judge::measure::{Motion, VerifyError};
 use crate::judge::svg::{Plot, Series};
 use crate::judge::verify::{self, CheckError};
@@ -48,15 +49,16 @@ fn motion(records: &[Record]) -> Result<(Motion, Option<f64>), VerifyError> {
     Ok((motion, z))
 }
 
-/// The axial section `records`' executed moves cut, against `job`'s target, with the Δ
-/// band (the target moved Δ out and in along its normal, magnified as the error is);
-/// `None` before the ring has turned through the work.
-pub fn section(job: &Job, records: &[Record]) -> Result<Option<Plot>, CheckError> {
+/// The axial section `records`' executed moves cut, against `job`'s target as `ring` (the
+/// ring the run's program was planned with) cuts it, with the Δ band (the target moved Δ out
+/// and in along its normal, magnified as the error is); `None` before the ring has turned
+/// through the work.
+pub fn section(job: &Job, ring: Ring, records: &[Record]) -> Result<Option<Plot>, CheckError> {
     let (motion, z) = motion(records)?;
     let Some(z) = z.filter(|_| motion.is_turning()) else {
         return Ok(None);
     };
-    let target = verify::target(job)?;
+    let target = verify::target(job, ring)?;
     let pitch = job.groove.lead / f64::from(job.groove.starts);
     let magnify = magnification(job.cut.delta, pitch);
     let mut plot = target.section_plot(&motion, z, magnify);
@@ -99,13 +101,14 @@ fn band(points: &[(f64, f64)], offset: f64) -> Vec<(f64, f64)> {
 }
 
 /// The whole cut measured against `job`'s groove over its formed length, as `whirl verify`
-/// measures a program; an error before the ring has turned through the work.
-pub fn measure(job: &Job, records: &[Record]) -> Result<Measured, CheckError> {
+/// measures a program planned with `ring`; an error before the ring has turned through the
+/// work.
+pub fn measure(job: &Job, ring: Ring, records: &[Record]) -> Result<Measured, CheckError> {
     let (motion, _) = motion(records)?;
     if !motion.is_turning() {
         return Err(VerifyError::NoTurning.into());
     }
-    let m = verify::target(job)?.measure(&motion)?;
+    let m = verify::target(job, ring)?.measure(&motion)?;
     let delta = job.cut.delta;
     Ok(Measured {
         max_overcut_mm: m.max_overcut_mm,
@@ -154,11 +157,12 @@ mod tests {
                 rapid: true,
             },
         };
-        assert!(section(&job, std::slice::from_ref(&rapid))
+        let (ring, _) = crate::plan::angles::ring(&job).unwrap();
+        assert!(section(&job, ring, std::slice::from_ref(&rapid))
             .unwrap()
             .is_none());
         assert!(matches!(
-            measure(&job, &[rapid]),
+            measure(&job, ring, &[rapid]),
             Err(CheckError::Verify(VerifyError::NoTurning))
         ));
     }

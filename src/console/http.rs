@@ -297,21 +297,7 @@ async fn groove(
     Path(machine): Path<String>,
     Query(_): Query<std::collections::HashMap<String, String>>,
 ) -> Result<Response, ApiError> {
-    let svg = blocking(move || {
-        let (view, cut, _) = console
-            .registry
-            .last(&machine)
-            .ok_or_else(|| StartError::NothingToResume(machine.clone()))?;
-        let path = console.jobs.resolve(&view.job)?;
-        let job =
-            crate::config::job::Job::load(&path).map_err(|e| StartError::Job(e.to_string()))?;
-        let plot = super::groove::section(&job, &cut).map_err(|e| StartError::Plan {
-            job: view.job.clone(),
-            error: e.to_string(),
-        })?;
-        Ok(plot.map(|p| p.to_svg()))
-    })
-    .await?;
+    let svg = blocking(move || Ok(console.cut_section(&machine)?.map(|p| p.to_svg()))).await?;
     Ok(match svg {
         Some(svg) => ([(header::CONTENT_TYPE, "image/svg+xml")], svg).into_response(),
         None => StatusCode::NO_CONTENT.into_response(),

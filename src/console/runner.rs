@@ -16,7 +16,9 @@ use super::resume::{self, ResumeError, ResumeOptions};
 use super::token::Token;
 use crate::config::job::Job;
 use crate::config::machine::MachineProfile;
+use crate::geometry::linkage::Ring;
 use crate::judge::dry_run::{self, DryRunOptions};
+use crate::judge::svg::Plot;
 use crate::log::{Event, ExecLog, FeedOverrideState, Record};
 use crate::plan::overrides::FeedCap;
 use crate::records::{Ending, FileSnapshot, NoteKind, Outcome, RunId, Store};
@@ -136,6 +138,8 @@ pub enum StartError {
 struct RunInputs {
     job_name: String,
     job: Job,
+    /// The ring the program was planned with, which its cut is measured with.
+    ring: Ring,
     /// The job file as read, for the records.
     job_file: Option<FileSnapshot>,
     /// The plan report (JSON), for the records.
@@ -229,12 +233,10 @@ impl Console {
     pub fn verify(&self, name: &str, machine: &str) -> Result<serde_json::Value, StartError> {
         let profile = self.machine(machine)?;
         let (job, plan) = self.planned(name, profile)?;
-        let verified =
-            crate::judge::verify::verify(&job, profile, &plan.text, false).map_err(|e| {
-                StartError::Plan {
-                    job: name.to_owned(),
-                    error: e.to_string(),
-                }
+        let verified = crate::judge::verify::verify(&job, plan.ring, profile, &plan.text, false)
+            .map_err(|e| StartError::Plan {
+                job: name.to_owned(),
+                error: e.to_string(),
             })?;
         Ok(serde_json::to_value(crate::judge::verify::VerifiedReport {
             report: &plan.report,
@@ -295,6 +297,7 @@ impl Console {
         let inputs = Arc::new(RunInputs {
             job_name: request.job.clone(),
             job,
+            ring: plan.ring,
             job_file: Some(FileSnapshot::of(path.display().to_string(), &bytes)),
             plan_report: serde_json::to_string(&plan.report).ok(),
             feed_cap,
@@ -308,6 +311,21 @@ impl Console {
             link,
         });
         self.launch(&request.machine, inputs, None, Vec::new())
+    }
+
+    /// The groove `machine`'s runs have cut so far, against the target of the job they ran,
+    /// measured with the ring it was planned with ([`groove::section`]); `None` before the
+    /// ring has turned through the work.
+    pub fn cut_section(&self, machine: &str) -> Result<Option<Plot>, StartError> {
+        let nothing = || StartError::NothingToResume(machine.to_owned());
+        let (_, cut, inputs) = self.registry.last(machine).ok_or_else(nothing)?;
+        let inputs = inputs
+            .and_then(|i| i.downcast::<RunInputs>().ok())
+            .ok_or_else(nothing)?;
+        groove::section(&inputs.job, inputs.ring, &cut).map_err(|e| StartError::Plan {
+            job: inputs.job_name.clone(),
+            error: e.to_string(),
+        })
     }
 
     /// Resumes `machine`'s stopped run where it stopped; gives the new run's id.
@@ -449,6 +467,7 @@ impl Console {
         let (mut ending, link_use) = match (&inputs.link, resume_at) {
             (None, None) => match runtime.block_on(dry_run::dry_run(
                 &inputs.job,
+                inputs.ring,
                 profile,
                 &inputs.posted,
                 DryRunOptions {
@@ -514,7 +533,7 @@ impl Console {
         let measured = inputs
             .link
             .is_none()
-            .then(|| groove::measure(&inputs.job, &cut));
+            .then(|| groove::measure(&inputs.job, inputs.ring, &cut));
         let resume = view.as_ref().and_then(|v| v.resume.clone());
         record::complete(
             &mut ending,

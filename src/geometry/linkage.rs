@@ -111,7 +111,7 @@ pub enum LinkageError {
 /// Turn a vector about z by `c` radians.
 pub fn turn(v: DVec3, c: f64) -> DVec3 {
     let (s, co) = c.sin_cos();
-    DVec3::new(co * v.x - s * v.y, s * v.x + co * v.y, v.z)
+    turned(v, s, co)
 }
 
 /// The linkage for one groove (lead parameter p) and one ring.
@@ -121,6 +121,26 @@ pub struct Linkage {
     pub p: f64,
     /// The ring.
     pub ring: Ring,
+}
+
+/// The ring's tilt as conditions (1) to (3) use it, its trigonometry taken once for a solve
+/// rather than at every evaluation of g(C).
+#[derive(Debug, Clone, Copy)]
+struct Tilt {
+    /// kinematics.md's k.
+    k: f64,
+    /// tan δe.
+    tan: f64,
+    /// cos δe.
+    cos: f64,
+    /// The ring axis a_M.
+    axis: DVec3,
+}
+
+/// `v` turned about the z axis by the angle whose sine and cosine are `s` and `co`: [`turn`]
+/// with its sine and cosine given.
+fn turned(v: DVec3, s: f64, co: f64) -> DVec3 {
+    DVec3::new(co * v.x - s * v.y, s * v.x + co * v.y, v.z)
 }
 
 /// Angle step of the bracket search around C₀, and how far it looks.
@@ -139,12 +159,21 @@ impl Linkage {
         DVec3::new(0.0, self.ring.whirling.k() * de.sin(), de.cos())
     }
 
+    fn tilt(&self) -> Tilt {
+        let de = self.delta_e();
+        Tilt {
+            k: self.ring.whirling.k(),
+            tan: de.tan(),
+            cos: de.cos(),
+            axis: self.axis(),
+        }
+    }
+
     /// Z and X that put the turned nose centre `n_m` on the tip circle (conditions 1 and 2), or
     /// the reach needed when the square root is negative.
-    fn place(&self, n_m: DVec3) -> Result<(f64, f64), f64> {
-        let de = self.delta_e();
-        let z = n_m.z + self.ring.whirling.k() * de.tan() * n_m.y;
-        let needed = n_m.y.abs() / de.cos();
+    fn place(&self, tilt: &Tilt, n_m: DVec3) -> Result<(f64, f64), f64> {
+        let z = n_m.z + tilt.k * tilt.tan * n_m.y;
+        let needed = n_m.y.abs() / tilt.cos;
         let radius = self.ring.radius;
         if needed > radius {
             return Err(needed);
@@ -153,10 +182,11 @@ impl Linkage {
     }
 
     /// g(C): the meridian condition (3), n_M · (a_M × (N_M − O_M)); NaN out of reach.
-    fn meridian(&self, nose: DVec3, normal: DVec3, c: f64) -> f64 {
-        let n_m = turn(nose, c);
-        match self.place(n_m) {
-            Ok((x, z)) => turn(normal, c).dot(self.axis().cross(n_m - DVec3::new(x, 0.0, z))),
+    fn meridian(&self, tilt: &Tilt, nose: DVec3, normal: DVec3, c: f64) -> f64 {
+        let (s, co) = c.sin_cos();
+        let n_m = turned(nose, s, co);
+        match self.place(tilt, n_m) {
+            Ok((x, z)) => turned(normal, s, co).dot(tilt.axis.cross(n_m - DVec3::new(x, 0.0, z))),
             Err(_) => f64::NAN,
         }
     }
@@ -174,13 +204,16 @@ impl Linkage {
             Whirling::Internal => PI - nose.y.atan2(nose.x),
             Whirling::External => -nose.y.atan2(nose.x),
         };
-        let g = |c: f64| self.meridian(nose, normal, c);
-        let c = self.bracketed_root(g, c0, nose)?;
+        let tilt = self.tilt();
+        let g = |c: f64| self.meridian(&tilt, nose, normal, c);
+        let c = self.bracketed_root(&tilt, g, c0, nose)?;
         let n_m = turn(nose, c);
-        let (x, z) = self.place(n_m).map_err(|needed| LinkageError::OutOfReach {
-            needed,
-            radius: self.ring.radius,
-        })?;
+        let (x, z) = self
+            .place(&tilt, n_m)
+            .map_err(|needed| LinkageError::OutOfReach {
+                needed,
+                radius: self.ring.radius,
+            })?;
         let centre = DVec3::new(x, 0.0, z);
         let inward = (centre - n_m).normalize();
         let insert_axis = match self.ring.whirling {
@@ -225,6 +258,7 @@ impl Linkage {
     /// out of reach or out of angle.
     fn bracketed_root(
         &self,
+        tilt: &Tilt,
         g: impl Fn(f64) -> f64,
         c0: f64,
         nose: DVec3,
@@ -254,7 +288,7 @@ impl Linkage {
                 // may still walk into it.
                 *left = prev_g.is_finite() && !gc.is_finite();
                 if *left {
-                    out_of_reach = self.place(turn(nose, c)).err();
+                    out_of_reach = self.place(tilt, turn(nose, c)).err();
                 }
                 (*prev_c, *prev_g) = (c, gc);
             }

@@ -18,6 +18,7 @@
 use crate::config::connection::{DriveSettings, SettingError};
 use crate::config::job::Job;
 use crate::config::machine::MachineProfile;
+use crate::geometry::linkage::Ring;
 use crate::judge::cycles::{self, MergedGuard};
 use crate::judge::guard::DeltaGuard;
 use crate::judge::simulator;
@@ -211,14 +212,13 @@ struct SimSide {
     log_error: Option<LogError>,
 }
 
-/// The simulated controller for `machine`, its Δ guard watching for `job`'s groove, and the
-/// number of target points the guard will measure.
+/// The simulated controller for `machine`, `guard` watching it, and the number of target
+/// points the guard will measure.
 fn guarded_controller(
-    job: &Job,
+    guard: DeltaGuard,
     machine: &MachineProfile,
     options: ControllerOptions,
 ) -> Result<(Controller, usize), DryRunError> {
-    let guard = DeltaGuard::new(job, machine).map_err(DryRunError::Guard)?;
     let points = guard.points();
     let mut controller =
         Controller::new(&simulator::machine(machine), options).map_err(DryRunError::Controller)?;
@@ -395,34 +395,37 @@ pub fn preflight(
     }
 }
 
-/// Dry-runs `posted` (the program planned for `job` on `machine`, or one given for it) on
-/// the simulator over `options.transport`, logging to `log`; see the module docs. Its
-/// name names it in the log and the report.
+/// Dry-runs `posted` (the program planned for `job` on `machine` with `ring`, or one given
+/// for it; a program planned before takes the ring `plan` plans the job with,
+/// [`crate::plan::angles::ring`]) on the simulator over `options.transport`, logging to `log`;
+/// see the module docs. Its name names it in the log and the report.
 pub async fn dry_run(
     job: &Job,
+    ring: Ring,
     machine: &MachineProfile,
     posted: &Posted,
     options: DryRunOptions,
     log: &mut ExecLog,
 ) -> Result<DryRunReport, DryRunError> {
     let can = preflight(machine, posted, options.transport)?;
+    let guard = DeltaGuard::new(job, ring, machine).map_err(DryRunError::Guard)?;
     match (options.transport, can) {
         (TransportKind::ModbusTcp, _) => {
-            over_modbus(job, machine, posted, ModbusKind::Tcp, options, log).await
+            over_modbus(guard, machine, posted, ModbusKind::Tcp, options, log).await
         }
         (TransportKind::ModbusRtu, _) => {
-            over_modbus(job, machine, posted, ModbusKind::Rtu, options, log).await
+            over_modbus(guard, machine, posted, ModbusKind::Rtu, options, log).await
         }
         (_, Some((drives, bitrate))) => {
-            over_can(job, machine, posted, &drives, bitrate, options, log).await
+            over_can(guard, machine, posted, &drives, bitrate, options, log).await
         }
-        _ => over_serial(job, machine, posted, options, log).await,
+        _ => over_serial(guard, machine, posted, options, log).await,
     }
 }
 
 /// The dry run over a serial line: the controller behind a pseudo-terminal.
 async fn over_serial(
-    job: &Job,
+    guard: DeltaGuard,
     machine: &MachineProfile,
     posted: &Posted,
     options: DryRunOptions,
@@ -431,7 +434,7 @@ async fn over_serial(
     let program = posted.name.as_str();
     let lines = posted.lines.clone();
     let (mut controller, points) = guarded_controller(
-        job,
+        guard,
         machine,
         ControllerOptions {
             rx_buffer_size: options.rx_size,
@@ -533,7 +536,7 @@ const DRY_RUN_WATCHDOG_MS: u16 = u16::MAX;
 /// the same simulated controller and Δ guard, served with tokio-modbus over TCP or RTU,
 /// and whirl's Modbus transport streaming to it.
 async fn over_modbus(
-    job: &Job,
+    guard: DeltaGuard,
     machine: &MachineProfile,
     posted: &Posted,
     kind: ModbusKind,
@@ -548,7 +551,7 @@ async fn over_modbus(
     let segments = crate::post::modbus::segments(program)?;
     let total = segments.len();
     let moves = Pickup::whole(posted);
-    let (controller, points) = guarded_controller(job, machine, ControllerOptions::default())?;
+    let (controller, points) = guarded_controller(guard, machine, ControllerOptions::default())?;
     let bank = Bank::new(
         controller,
         BankOptions {
@@ -695,7 +698,7 @@ const CAN_BOOT_TIME_SCALE: f64 = 1.0;
 /// The report counts set-points as its lines (`lines`, `lines_acked`: sent), and gives the
 /// CAN bus's load as `link_utilization`, at the adapter's bit rate, without stuff bits.
 async fn over_can(
-    job: &Job,
+    guard: DeltaGuard,
     machine: &MachineProfile,
     posted: &Posted,
     drives: &DriveSettings,
@@ -719,7 +722,6 @@ async fn over_can(
     session.sdo_timeout = session.sdo_timeout.max(CAN_HOST_PATIENCE);
     session.heartbeat_timeout = session.heartbeat_timeout.max(CAN_HOST_PATIENCE);
     let counts_per_unit = drives.counts_per_unit();
-    let guard = DeltaGuard::new(job, machine).map_err(DryRunError::Guard)?;
     let points = guard.points();
     let mut bus = Bus::new(BusConfig::for_machine(
         &simulator::machine(machine),

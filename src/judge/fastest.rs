@@ -97,7 +97,7 @@ pub fn fastest_within(
 
 /// The engine's measure of `plan`'s program against `job` (at the plan's feed).
 fn measure(job: &Job, machine: &MachineProfile, plan: &Plan) -> Result<Verification, FastestError> {
-    verify(job, machine, &plan.text, false).map_err(|error| FastestError::Measure {
+    verify(job, plan.ring, machine, &plan.text, false).map_err(|error| FastestError::Measure {
         feed: job.cut.axial_feed,
         error,
     })

@@ -64,7 +64,7 @@ type Params = [f64; PARAMETERS];
 /// One fitted value, in the job's units (mm, or degrees for the angle).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Estimate {
-    /// The job's value.
+    /// The job's value: for the angle of a job that gives none, the one it was planned with.
     pub job: f64,
     /// The fitted value.
     pub fitted: f64,
@@ -155,32 +155,44 @@ pub enum FitError {
     Engine(VerifyError),
 }
 
-/// The motion that cut the part: `program` (text for `machine`), or the job planned for the
-/// machine as `whirl plan` plans it ([`crate::judge::refine::plan`]).
-pub fn motion(
-    job: &Job,
-    machine: &MachineProfile,
-    program: Option<&str>,
-) -> Result<Motion, FitError> {
+/// What cut the part: the motion, and the ring it was planned with, whose radius, nose and
+/// angle the fit starts from.
+#[derive(Debug, Clone)]
+pub struct Cut {
+    /// The motion of the program that cut the part.
+    pub motion: Motion,
+    /// The ring the program was planned with: the job's, tilted by its installation angle or,
+    /// where it gives none, by the angle `whirl plan` chose ([`crate::plan::angles::ring`]).
+    pub ring: Ring,
+}
+
+/// What cut the part: `program` (text for `machine`), or the job planned for the machine as
+/// `whirl plan` plans it ([`crate::judge::refine::plan`]), and the ring either was planned
+/// with.
+pub fn motion(job: &Job, machine: &MachineProfile, program: Option<&str>) -> Result<Cut, FitError> {
     let planned;
-    let text = match program {
-        Some(text) => text,
+    let (text, ring) = match program {
+        Some(text) => {
+            let (ring, _) = crate::plan::angles::ring(job)
+                .map_err(|e| FitError::Plan(Box::new(PlanError::NoAngle(e))))?;
+            (text, ring)
+        }
         None => {
             planned = crate::judge::refine::plan(job, machine)
-                .map_err(|e| FitError::Plan(Box::new(e)))?
-                .text;
-            &planned
+                .map_err(|e| FitError::Plan(Box::new(e)))?;
+            (planned.text.as_str(), planned.ring)
         }
     };
     let program = read_program(text, machine.x_diameter())
         .map_err(|e| FitError::Program(CheckError::Parse(e)))?;
-    Motion::new(&program).map_err(|e| FitError::Program(CheckError::Verify(e)))
+    let motion = Motion::new(&program).map_err(|e| FitError::Program(CheckError::Verify(e)))?;
+    Ok(Cut { motion, ring })
 }
 
 /// The engine's errors of a tool at fixed points of the groove.
 struct Engine<'a> {
     job: &'a Job,
-    motion: &'a Motion,
+    cut: &'a Cut,
     /// (profile parameter, start, z) of each point.
     points: Vec<(f64, u32, f64)>,
 }
@@ -191,7 +203,7 @@ impl Engine<'_> {
             radius: params[0],
             nose: params[1],
             installation: params[2],
-            ..self.job.ring()
+            ..self.cut.ring
         }
     }
 
@@ -215,7 +227,7 @@ impl Engine<'_> {
         Ok(self
             .points
             .iter()
-            .map(|&(u, start, z)| target.error_at_u(self.motion, u, start, z))
+            .map(|&(u, start, z)| target.error_at_u(&self.cut.motion, u, start, z))
             .collect())
     }
 }
@@ -228,8 +240,9 @@ fn valid(params: &Params) -> bool {
         && (0.0..std::f64::consts::FRAC_PI_2).contains(&params[2])
 }
 
-/// Fit the tool `job`'s part was cut with, by `motion`, from the deviations measured on it.
-pub fn fit(job: &Job, motion: &Motion, deviations: &[Deviation]) -> Result<Fit, FitError> {
+/// Fit the tool `job`'s part was cut with, by `cut`, from the deviations measured on it,
+/// starting from the ring the cut was planned with.
+pub fn fit(job: &Job, cut: &Cut, deviations: &[Deviation]) -> Result<Fit, FitError> {
     if deviations.len() <= PARAMETERS {
         return Err(FitError::TooFew {
             found: deviations.len(),
@@ -238,11 +251,11 @@ pub fn fit(job: &Job, motion: &Motion, deviations: &[Deviation]) -> Result<Fit, 
             last_line: deviations.last().map_or(0, |d| d.line),
         });
     }
-    let ring = job.ring();
+    let ring = cut.ring;
     let start: Params = [ring.radius, ring.nose, ring.installation];
     let engine = Engine {
         job,
-        motion,
+        cut,
         points: deviations
             .iter()
             .map(|d| (d.profile_u, d.start, d.z_mm))
@@ -259,7 +272,7 @@ pub fn fit(job: &Job, motion: &Motion, deviations: &[Deviation]) -> Result<Fit, 
     let middle = job.groove.z_start + job.groove.length / 2.0;
     let profile = Engine {
         job,
-        motion,
+        cut,
         points: (0..PROFILE_POSITIONS)
             .map(|k| {
                 let u = job.profile.length() * (k as f64 + 0.5) / PROFILE_POSITIONS as f64;
@@ -816,7 +829,11 @@ mod tests {
             chain: 0.0,
         };
         let three: Vec<Deviation> = [9, 10, 12].map(point).to_vec();
-        let e = fit(&job, &Motion::empty(), &three).unwrap_err();
+        let cut = Cut {
+            motion: Motion::empty(),
+            ring: ring(&job),
+        };
+        let e = fit(&job, &cut, &three).unwrap_err();
         assert_eq!(
             e.to_string(),
             "3 measured points (lines 9 to 12): fitting the ring radius, the nose radius and the \
@@ -860,9 +877,14 @@ mod tests {
         assert!(matches!(e, FitError::Engine(_)), "{e}");
     }
 
+    /// The ring `plan` plans `job` with.
+    fn ring(job: &Job) -> Ring {
+        crate::plan::angles::ring(job).unwrap().0
+    }
+
     /// A fit of `job`'s tool moved to `params`, its uncertainty `uncertainty`.
     fn fitted(job: &Job, params: Params, uncertainty: f64) -> Fit {
-        let ring = job.ring();
+        let ring = ring(job);
         let estimate = |job: f64, fitted: f64| Estimate {
             job,
             fitted,
@@ -898,7 +920,9 @@ mod tests {
         assert!(out.contains("ring_radius = 60.0213     # R, mm"), "{out}");
         assert!(out.contains("nose_radius = 1.1999      # r, mm"), "{out}");
         assert!(out.contains("installation_angle_deg = 21.0346"), "{out}");
-        assert!(out.contains("# installation_angle_deg omitted: the lead angle at the mean radius"));
+        assert!(out.contains(
+            "# installation_angle_deg omitted: the angle with the largest margin in its window"
+        ));
         let corrected = Job::from_toml(&out, &path).unwrap();
         assert_eq!(corrected.tool.ring_radius, 60.0213);
         assert_eq!(corrected.tool.nose_radius, 1.1999);
@@ -916,8 +940,8 @@ mod tests {
         // The comment lines above a key that changes stay above it.
         let (_, text, _) = example("trapezoidal");
         let out = corrected_text(&text, &params, None, "").unwrap();
-        let above = "# only within about half a degree of it (the mean-radius default, 7.06°, is \
-                     refused).\ninstallation_angle_deg = 21.0346\n";
+        let above = "# only within about half a degree of it (the lead angle at the mean radius, \
+                     7.06°, is refused).\ninstallation_angle_deg = 21.0346\n";
         assert!(out.contains(above), "{out}");
     }
 
@@ -925,7 +949,7 @@ mod tests {
     fn a_correction_is_refused_when_the_fit_is_loose_the_job_invalid_or_unplannable() {
         let (job, text, path) = example("trapezoidal");
         let machine = MachineProfile::builtin_sim().unwrap();
-        let ring = job.ring();
+        let ring = ring(&job);
         let good = [
             ring.radius + 0.02,
             ring.nose,

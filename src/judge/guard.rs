@@ -17,6 +17,7 @@
 
 use crate::config::job::Job;
 use crate::config::machine::MachineProfile;
+use crate::geometry::linkage::Ring;
 use crate::judge::measure::{Grid, Motion, PointError, Sample, Target};
 use crate::judge::verify::{self, CheckError};
 use std::collections::VecDeque;
@@ -48,9 +49,10 @@ pub struct DeltaGuard {
 }
 
 impl DeltaGuard {
-    /// A guard for `job`'s groove on `machine` (whose X mode says how to read X).
-    pub fn new(job: &Job, machine: &MachineProfile) -> Result<DeltaGuard, CheckError> {
-        let target = verify::target(job)?;
+    /// A guard for `job`'s groove, cut by `ring` (the ring the program was planned with, see
+    /// [`verify::target`]), on `machine` (whose X mode says how to read X).
+    pub fn new(job: &Job, ring: Ring, machine: &MachineProfile) -> Result<DeltaGuard, CheckError> {
+        let target = verify::target(job, ring)?;
         let grid = target.grid();
         let reach = grid
             .near
@@ -210,12 +212,17 @@ mod tests {
         Job::load(&path).expect("the example loads")
     }
 
+    /// The ring `plan` plans `job` with.
+    fn ring(job: &Job) -> Ring {
+        crate::plan::angles::ring(job).unwrap().0
+    }
+
     /// Runs `text` on a simulated controller guarded for `job`, feeding lines as its RX
     /// buffer has room; returns everything it printed and the controller.
     fn run(job: &Job, text: &str) -> (String, Controller) {
         let profile = MachineProfile::builtin_sim().unwrap();
         let mut sim = Controller::new(&machine(&profile), ControllerOptions::default()).unwrap();
-        sim.set_guard(Box::new(DeltaGuard::new(job, &profile).unwrap()));
+        sim.set_guard(Box::new(DeltaGuard::new(job, ring(job), &profile).unwrap()));
         let mut out = String::from_utf8(sim.take_output()).unwrap();
         let mut stopped = false;
         for line in text.lines() {
@@ -249,13 +256,13 @@ mod tests {
         assert!(!out.contains("ALARM"), "{out}");
         assert!(out.contains("[MSG:Pgm End]"));
         let m = sim.guard().unwrap().measured();
-        let target = verify::target(&job).unwrap();
+        let target = verify::target(&job, plan.ring).unwrap();
         assert_eq!(m.points, target.grid().samples.len());
         assert!(m.max_error_mm() <= job.cut.delta, "{m:?}");
         // What the guard measured on the executed motion is what `whirl verify` measures on
         // the program: the same engine, the motion differing by the controller's 32-bit
         // positions, which the planner's rounding share bounds.
-        let v = verify::verify(&job, &profile, &plan.text, false).unwrap();
+        let v = verify::verify(&job, plan.ring, &profile, &plan.text, false).unwrap();
         let held = plan.report.rounding_mm;
         assert!(
             (m.max_overcut_mm - v.max_overcut_mm).abs() <= held,
@@ -299,7 +306,9 @@ mod tests {
         let job = example("trapezoidal");
         let profile = MachineProfile::builtin_sim().unwrap();
         let mut sim = Controller::new(&machine(&profile), ControllerOptions::default()).unwrap();
-        sim.set_guard(Box::new(DeltaGuard::new(&job, &profile).unwrap()));
+        sim.set_guard(Box::new(
+            DeltaGuard::new(&job, ring(&job), &profile).unwrap(),
+        ));
         sim.receive(b"$J=G91 X5 C10 F500\n$J=G91 C-5 F500\n");
         for _ in 0..100 {
             sim.advance(0.1).unwrap();

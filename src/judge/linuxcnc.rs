@@ -36,6 +36,7 @@ use std::time::{Duration, Instant};
 use crate::config::connection::LinuxcncSettings;
 use crate::config::job::Job;
 use crate::config::machine::{MachineProfile, XMode};
+use crate::geometry::linkage::Ring;
 use crate::judge::dry_run::DryRunReport;
 use crate::judge::guard::DeltaGuard;
 use crate::judge::sampled::{SampledPath, SampledRun};
@@ -479,10 +480,11 @@ pub struct LinuxcncDryRunOptions {
     pub commands: Option<Commands>,
 }
 
-/// Dry-runs `posted` (written for a LinuxCNC `machine`) on LinuxCNC's simulation; see the
-/// module docs.
+/// Dry-runs `posted` (written for a LinuxCNC `machine`, planned for `job` with `ring`) on
+/// LinuxCNC's simulation, its Δ guard measuring with that ring; see the module docs.
 pub async fn dry_run(
     job: &Job,
+    ring: Ring,
     machine: &MachineProfile,
     posted: &Posted,
     options: LinuxcncDryRunOptions,
@@ -500,7 +502,7 @@ pub async fn dry_run(
         x_mode: XMode::Radius,
         ..machine.clone()
     };
-    let guard = DeltaGuard::new(job, &radius).map_err(LinuxcncSimError::Guard)?;
+    let guard = DeltaGuard::new(job, ring, &radius).map_err(LinuxcncSimError::Guard)?;
     let points = guard.points();
     let started = Instant::now();
     let instance = Simulation::start(machine, speed).await?;

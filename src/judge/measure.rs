@@ -595,7 +595,8 @@ mod tests {
     fn a_motion_that_never_turns_c_reaches_no_point_it_does_not_pass() {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/trapezoidal/job.toml");
         let job = Job::load(std::path::Path::new(path)).unwrap();
-        let target = crate::judge::verify::target(&job).unwrap();
+        let (ring, _) = crate::plan::angles::ring(&job).unwrap();
+        let target = crate::judge::verify::target(&job, ring).unwrap();
         let (z_lo, z_hi) = target.z_range;
         // A positioning move along X, a metre beyond the groove's end.
         let z = z_hi + 1000.0;

@@ -2,17 +2,19 @@
 //! the executed moves cut against the job's target.
 
 use crate::config::job::Job;
+use crate::geometry::linkage::Ring;
 use crate::judge::measure::{Motion, VerifyError};
 use crate::judge::svg::{Plot, Series};
 use crate::judge::verify::{self, CheckError};
 use crate::log::{Event, Read};
 
-/// The axial section the logged executed moves cut, against `job`'s target, with the error
-/// magnified so that Δ draws as a twentieth of the pitch, around the middle of the groove.
-/// Needs executed moves, which a simulated controller logs; rapids are positioning and are
-/// left out, as the simulator's Δ guard leaves them.
-pub fn section_plot(log: &Read, job: &Job) -> Result<Plot, CheckError> {
-    let target = verify::target(job)?;
+/// The axial section the logged executed moves cut, against `job`'s target (swept by `ring`,
+/// the ring the program was planned with: [`verify::target`]), with the error magnified so
+/// that Δ draws as a twentieth of the pitch, around the middle of the groove. Needs executed
+/// moves, which a simulated controller logs; rapids are positioning and are left out, as the
+/// simulator's Δ guard leaves them.
+pub fn section_plot(log: &Read, job: &Job, ring: Ring) -> Result<Plot, CheckError> {
+    let target = verify::target(job, ring)?;
     let mut motion = Motion::empty();
     for (i, r) in log.records.iter().enumerate() {
         if let Event::Executed {

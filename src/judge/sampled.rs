@@ -197,7 +197,9 @@ mod tests {
         )
         .unwrap();
         machine.x_mode = XMode::Radius;
-        let guard = DeltaGuard::new(&job(), &machine).unwrap();
+        let job = job();
+        let (ring, _) = crate::plan::angles::ring(&job).unwrap();
+        let guard = DeltaGuard::new(&job, ring, &machine).unwrap();
         SampledPath::new(guard, rapid_lines, 0.001, &ExecLog::discard())
     }
 

@@ -3,7 +3,7 @@
 
 use crate::config::job::Job;
 use crate::config::machine::MachineProfile;
-use crate::geometry::linkage::Linkage;
+use crate::geometry::linkage::{Linkage, Ring};
 use crate::judge::measure::{Measurement, Motion, PointError, Target, VerifyError};
 use crate::plan::Report;
 use crate::post::gcode::parse::{read_program, ParseError};
@@ -53,15 +53,17 @@ pub enum CheckError {
     Verify(#[from] VerifyError),
 }
 
-/// Measure `program` (G-code text for `machine`) against `job`'s groove over its formed length;
-/// with `picture`, also draw the axial section around the worst point.
+/// Measure `program` (G-code text for `machine`) against `job`'s groove over its formed
+/// length, swept by `ring`, the ring it was planned with (see [`target`]); with `picture`,
+/// also draw the axial section around the worst point.
 pub fn verify(
     job: &Job,
+    ring: Ring,
     machine: &MachineProfile,
     program: &str,
     picture: bool,
 ) -> Result<Verification, CheckError> {
-    let target = target(job)?;
+    let target = target(job, ring)?;
     let program = read_program(program, machine.x_diameter()).map_err(CheckError::Parse)?;
     let motion = Motion::new(&program)?;
     let m: Measurement = target.measure(&motion)?;
@@ -93,13 +95,13 @@ pub fn verify(
     })
 }
 
-/// `job`'s groove over its formed length, as the engine measures it.
-pub fn target(job: &Job) -> Result<Target, CheckError> {
-    let linkage = Linkage {
-        p: job.p(),
-        // The ring `plan` plans with: a job that gives no angle gets its window's best.
-        ring: crate::plan::angles::ring(job).map_or_else(|_| job.ring(), |(ring, _)| ring),
-    };
+/// `job`'s groove over its formed length, as the engine measures a program planned with
+/// `ring`: the plan's own ([`crate::plan::Plan::ring`]), or for a program planned before, the
+/// ring `plan` plans the job with ([`crate::plan::angles::ring`]). The engine finds each
+/// point's nearest poses from the linkage of that ring, so another ring (another installation
+/// angle) measures the program against poses it was not planned at.
+pub fn target(job: &Job, ring: Ring) -> Result<Target, CheckError> {
+    let linkage = Linkage { p: job.p(), ring };
     let z_range = (job.groove.z_start, job.groove.z_start + job.groove.length);
     Ok(Target::new(
         job.profile.clone(),

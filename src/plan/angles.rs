@@ -19,11 +19,12 @@
 //! [`EDGE_TOLERANCE_DEG`]. Every angle found here lies on that grid (the lead angles are
 //! rounded to it): an edge as printed, "7.107°", is the angle checked, so a job that gives
 //! it plans, and a job that gives the angle chosen plans the program `plan` makes when it
-//! chooses. The ring's clearance and the linkage table cost a millisecond where
-//! they pass; the interference check, which sweeps the whole groove for every start, costs
-//! 50 to 150 ms. So an edge where the table fails is bisected on the clearance and the table
-//! alone, and the interference check then run at the angle found: if it passes there, the
-//! edge is the table's; if not, it is bisected again on the whole check, inside. A window
+//! chooses. The ring's clearance and the linkage table cost about a millisecond where they
+//! pass, and less where ψ turns back (`Search`); the interference check, which sweeps the
+//! whole groove for every start, a few. So an edge where the table fails is bisected on the
+//! clearance and the table alone, and the interference check then run at the angle found: if
+//! it passes there, the edge is the table's; if not, it is bisected again on the whole check,
+//! inside. The scan's angles, and then the edges, are checked on every core at once. A window
 //! narrower than a scan step away from those lead angles may fall between two scan angles and
 //! be missed.
 
@@ -33,6 +34,7 @@ use crate::geometry::linkage::{Linkage, Ring};
 use crate::plan::interference::{self, Interference};
 use crate::plan::table::{Table, TableError};
 use serde::Serialize;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// The grid every angle found here lies on: steps a degree.
 const STEPS_PER_DEG: i64 = 1000;
@@ -118,18 +120,31 @@ pub(crate) struct Fitted {
 /// `plan`'s checks that depend on the installation angle, in its order and to its
 /// tolerances: the ring clears the work at its clear position, the linkage table builds to
 /// [`TABLE_SHARE`] of Δ (and to the engine's tolerance, which measures what `whirl plan`
-/// plans), and the interference check finds nothing deeper than Δ/10.
+/// plans), and the interference check, run on the finer of the two tables, finds nothing
+/// deeper than Δ/10.
 pub(crate) fn fit(job: &Job, linkage: &Linkage) -> Result<Fitted, Misfit> {
-    let fitted = fit_table(job, linkage)?;
+    let (_, rho_max) = job.profile.radius_range();
+    let x_clear = clear_x(&linkage.ring, rho_max)?;
+    let tolerance = TABLE_SHARE * job.cut.delta;
+    let table = Table::build(&job.profile, linkage, tolerance).map_err(Misfit::Table)?;
+    let finer = (ENGINE_TABLE_TOLERANCE < tolerance)
+        .then(|| Table::build(&job.profile, linkage, ENGINE_TABLE_TOLERANCE))
+        .transpose()
+        .map_err(Misfit::Table)?;
+    interferes(job, linkage, finer.as_ref().unwrap_or(&table))?;
+    Ok(Fitted { table, x_clear })
+}
+
+/// The interference check of [`fit`] on `table`.
+fn interferes(job: &Job, linkage: &Linkage, table: &Table) -> Result<(), Misfit> {
     interference::check(
         &job.profile,
-        &fitted.table,
+        table,
         linkage,
         job.groove.starts,
         job.cut.delta / 10.0,
     )
-    .map_err(Misfit::Interference)?;
-    Ok(fitted)
+    .map_err(Misfit::Interference)
 }
 
 /// The tolerance of the linkage table the sweep engine seeds its search with
@@ -138,17 +153,59 @@ pub(crate) fn fit(job: &Job, linkage: &Linkage) -> Result<Fitted, Misfit> {
 /// measures every plan with the engine, so an angle fits only where that table builds too.
 const ENGINE_TABLE_TOLERANCE: f64 = 1e-4;
 
-/// The cheap part of [`fit`]: the clearance and the linkage table, built to `plan`'s
-/// tolerance and, where finer, to the engine's.
-fn fit_table(job: &Job, linkage: &Linkage) -> Result<Fitted, Misfit> {
-    let (_, rho_max) = job.profile.radius_range();
-    let x_clear = clear_x(&linkage.ring, rho_max)?;
-    let tolerance = TABLE_SHARE * job.cut.delta;
-    let table = Table::build(&job.profile, linkage, tolerance).map_err(Misfit::Table)?;
-    if ENGINE_TABLE_TOLERANCE < tolerance {
-        Table::build(&job.profile, linkage, ENGINE_TABLE_TOLERANCE).map_err(Misfit::Table)?;
+/// [`fit`]'s verdict at the grid angles of one job, found as cheaply as it can be.
+///
+/// A table to a finer tolerance samples every profile point a coarser one samples (the
+/// refinement halves the same spans, and more of them), so where the finer table builds, the
+/// coarser one does too: the finer of `fit`'s two tables alone decides whether the linkage
+/// fits, and the interference check runs on it. It is built with [`Table::probe`], which
+/// stops where ψ first turns back. Where a table is refused, its refusal may then name
+/// another profile point than `fit`'s; [`Search::reason`] gives `fit`'s where one is shown.
+struct Search<'a> {
+    job: &'a Job,
+    /// The work's outer radius, mm.
+    rho_max: f64,
+    /// The finer of the tables' tolerances, mm.
+    finest: f64,
+}
+
+impl<'a> Search<'a> {
+    fn new(job: &'a Job) -> Search<'a> {
+        Search {
+            job,
+            rho_max: job.profile.radius_range().1,
+            finest: (TABLE_SHARE * job.cut.delta).min(ENGINE_TABLE_TOLERANCE),
+        }
     }
-    Ok(Fitted { table, x_clear })
+
+    /// The job's linkage at the grid angle `at`.
+    fn linkage(&self, at: i64) -> Linkage {
+        tilted(self.job, degrees(at))
+    }
+
+    /// Whether the ring fits at `at` (`None`) or why not: the clearance and the linkage table,
+    /// and, if `whole`, the interference check.
+    fn check(&self, at: i64, whole: bool) -> Outcome {
+        let linkage = self.linkage(at);
+        if let Err(misfit) = clear_x(&linkage.ring, self.rho_max) {
+            return Some(misfit);
+        }
+        match Table::probe(&self.job.profile, &linkage, self.finest) {
+            Err(e) => Some(Misfit::Table(e)),
+            Ok(table) if whole => interferes(self.job, &linkage, &table).err(),
+            Ok(_) => None,
+        }
+    }
+
+    /// `fit`'s refusal at `at`, where [`Search::check`] found `why`: the same, but for a
+    /// table's.
+    fn reason(&self, at: i64, why: Misfit) -> Misfit {
+        match why {
+            Misfit::Table(_) => fit(self.job, &self.linkage(at))
+                .expect_err("fit refuses where its finer table is refused"),
+            other => other,
+        }
+    }
 }
 
 /// One edge of a window.
@@ -240,10 +297,7 @@ pub fn show_deg(deg: f64) -> String {
 fn tilted(job: &Job, deg: f64) -> Linkage {
     Linkage {
         p: job.p(),
-        ring: Ring {
-            installation: deg.to_radians(),
-            ..job.ring()
-        },
+        ring: job.ring_at(deg.to_radians()),
     }
 }
 
@@ -252,6 +306,23 @@ fn tilted(job: &Job, deg: f64) -> Linkage {
 fn lead_angles(job: &Job) -> [f64; 3] {
     let (lo, hi) = job.profile.radius_range();
     [lo, (lo + hi) / 2.0, hi].map(|rho| (job.p().abs() / rho).atan().to_degrees())
+}
+
+/// The grid angles the scan checks, in increasing order: every [`SCAN_STEP_DEG`] from 0°, and
+/// the lead angles at the groove's least, mean and greatest radius.
+fn scan_angles(job: &Job) -> Vec<i64> {
+    let mut angles: Vec<i64> = (0..RANGE_STEPS)
+        .step_by(SCAN_STEPS as usize)
+        .chain(
+            lead_angles(job)
+                .map(steps)
+                .into_iter()
+                .filter(|at| *at < RANGE_STEPS),
+        )
+        .collect();
+    angles.sort_unstable();
+    angles.dedup();
+    angles
 }
 
 /// The outcome of a check at one angle: `None` where it fits.
@@ -277,29 +348,36 @@ fn bisect(check: impl Fn(i64) -> Outcome, mut fits: i64, mut beyond: (i64, Misfi
 /// the groove (`fit`), their edges by bisection (see the module's docs); or, if it fits
 /// nowhere, where it came nearest.
 pub fn windows(job: &Job) -> Result<Windows, NoWindow> {
-    let full = |at: i64| fit(job, &tilted(job, degrees(at))).err();
-    let cheap = |at: i64| fit_table(job, &tilted(job, degrees(at))).err();
+    let search = Search::new(job);
+    let full = |at: i64| search.check(at, true);
+    let cheap = |at: i64| search.check(at, false);
     let leads = lead_angles(job);
-    let mut angles: Vec<i64> = (0..RANGE_STEPS)
-        .step_by(SCAN_STEPS as usize)
-        .chain(leads.map(steps).into_iter().filter(|at| *at < RANGE_STEPS))
-        .collect();
-    angles.sort_unstable();
-    angles.dedup();
-    let scan: Vec<(i64, Outcome)> = angles.iter().map(|&at| (at, full(at))).collect();
+    let angles = scan_angles(job);
+    let outcomes = in_parallel(&angles, |&at| full(at));
+    let scan: Vec<(i64, Outcome)> = angles.into_iter().zip(outcomes).collect();
     // The edge between the scan angle `inside`, which fits, and its neighbour `outside`.
-    let edge = |inside: i64, outside: &(i64, Outcome)| {
-        let why = outside.1.clone().expect("a scan angle that does not fit");
-        if matches!(why, Misfit::Interference(_)) {
-            return bisect(full, inside, (outside.0, why));
-        }
-        let table_edge = bisect(cheap, inside, (outside.0, why));
-        match full(steps(table_edge.deg)) {
-            None => table_edge,
-            Some(why) => bisect(full, inside, (steps(table_edge.deg), why)),
+    let edge = |&(inside, outside): &(i64, usize)| {
+        let (outside, why) = &scan[outside];
+        let why = why.clone().expect("a scan angle that does not fit");
+        let found = if matches!(why, Misfit::Interference(_)) {
+            bisect(full, inside, (*outside, why))
+        } else {
+            let table_edge = bisect(cheap, inside, (*outside, why));
+            match full(steps(table_edge.deg)) {
+                None => table_edge,
+                Some(why) => bisect(full, inside, (steps(table_edge.deg), why)),
+            }
+        };
+        Edge {
+            beyond: found
+                .beyond
+                .map(|(deg, why)| (deg, search.reason(steps(deg), why))),
+            ..found
         }
     };
-    let mut windows = Vec::new();
+    // The windows as runs of scan angles that fit, first and last, and their edges to find:
+    // each as the scan angle inside and the index of the scan angle beyond.
+    let mut runs = Vec::new();
     let mut k = 0;
     while k < scan.len() {
         if scan[k].1.is_some() {
@@ -313,23 +391,36 @@ pub fn windows(job: &Job) -> Result<Windows, NoWindow> {
         {
             k += 1;
         }
-        let low = match first.checked_sub(1) {
-            Some(before) => edge(scan[first].0, &scan[before]),
-            None => Edge {
-                deg: degrees(scan[first].0),
-                beyond: None,
-            },
-        };
-        let high = match scan.get(k + 1) {
-            Some(after) => edge(scan[k].0, after),
-            None => Edge {
-                deg: degrees(scan[k].0),
-                beyond: None,
-            },
-        };
-        windows.push(Window { low, high });
+        runs.push((first, k));
         k += 1;
     }
+    let bisections: Vec<(i64, usize)> = runs
+        .iter()
+        .flat_map(|&(first, last)| {
+            let low = first.checked_sub(1).map(|before| (scan[first].0, before));
+            let high = (last + 1 < scan.len()).then(|| (scan[last].0, last + 1));
+            low.into_iter().chain(high)
+        })
+        .collect();
+    let mut found = in_parallel(&bisections, edge).into_iter();
+    // A run's end is a bisected edge, or the end of the range a job may give.
+    let mut end = |at: i64, bisected: bool| {
+        if bisected {
+            found.next().expect("an edge for every bisection")
+        } else {
+            Edge {
+                deg: degrees(at),
+                beyond: None,
+            }
+        }
+    };
+    let windows: Vec<Window> = runs
+        .iter()
+        .map(|&(first, last)| Window {
+            low: end(scan[first].0, first > 0),
+            high: end(scan[last].0, last + 1 < scan.len()),
+        })
+        .collect();
     if !windows.is_empty() {
         return Ok(Windows { windows });
     }
@@ -343,8 +434,44 @@ pub fn windows(job: &Job) -> Result<Windows, NoWindow> {
         .expect("the scan holds angles, every one refused");
     Err(NoWindow {
         deg: degrees(at),
-        why,
+        why: search.reason(at, why),
     })
+}
+
+/// `f` of every item, in order, the items shared out over the machine's cores: the scan's
+/// angles, and the edges to bisect, are checked independently of each other.
+fn in_parallel<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(items.len());
+    if threads <= 1 {
+        return items.iter().map(f).collect();
+    }
+    // Each thread takes the next item not yet taken: the costly ones (where the table builds
+    // and the interference check runs) lie together in the scan.
+    let next = AtomicUsize::new(0);
+    let mut done: Vec<(usize, R)> = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut mine = Vec::new();
+                    loop {
+                        let k = next.fetch_add(1, Ordering::Relaxed);
+                        let Some(item) = items.get(k) else {
+                            return mine;
+                        };
+                        mine.push((k, f(item)));
+                    }
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .flat_map(|w| w.join().expect("a thread of the angle search panicked"))
+            .collect()
+    });
+    done.sort_unstable_by_key(|(k, _)| *k);
+    done.into_iter().map(|(_, r)| r).collect()
 }
 
 /// The sentence a refusal of an angle appends: the windows, or that there is none.
@@ -406,8 +533,8 @@ pub enum AngleOrigin {
 /// The ring `plan` plans with, and where its angle comes from: the job's, or, if it gives
 /// none, the angle with the largest margin in the windows.
 pub fn ring(job: &Job) -> Result<(Ring, AngleOrigin), NoWindow> {
-    if job.tool.installation_angle_deg.is_some() {
-        return Ok((job.ring(), AngleOrigin::Given));
+    if let Some(deg) = job.tool.installation_angle_deg {
+        return Ok((job.ring_at(deg.to_radians()), AngleOrigin::Given));
     }
     let found = windows(job)?;
     let (window, deg) = found.best();

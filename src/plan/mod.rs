@@ -41,7 +41,7 @@ const CLEARANCE: f64 = 2.0;
 /// Share of the interpolation budget the table's own sampling may use.
 const TABLE_SHARE: f64 = 0.05;
 
-/// A planned job: the program, its text for the machine, and the report.
+/// A planned job: the program, its text for the machine, the report, and the ring planned with.
 #[derive(Debug, Clone)]
 pub struct Plan {
     /// The program, dialect-free.
@@ -50,6 +50,10 @@ pub struct Plan {
     pub text: String,
     /// Figures for the engineer.
     pub report: Report,
+    /// The ring the program was planned with, tilted by the job's installation angle or, where
+    /// it gives none, by the window's angle of largest margin ([`angles::ring`]): what the
+    /// engine must measure the program with.
+    pub ring: Ring,
 }
 
 /// What `whirl plan --report` writes.
@@ -335,7 +339,8 @@ pub fn plan_with(
     let held = |v: f64| machine.number.spacing_at(v) / 2.0;
     // An absurd Δ is refused before any work: one the numbers cannot hold, or one beyond the
     // groove's depth. What passes gets its decimals here.
-    let x_clear_least = clear_x(&job.ring(), rho_max).unwrap_or(0.0);
+    let tool = &job.tool;
+    let x_clear_least = clear_position(tool.whirling, tool.ring_radius, tool.nose_radius, rho_max);
     let (linear, angular) = check_delta(job, machine, (rho_min, rho_max), x_clear_least)?;
     // Concave stretches tighter than the nose: the shallow ones are a cost, the others refused.
     let limit = CONCAVE_SHARE * delta;
@@ -509,6 +514,7 @@ pub fn plan_with(
         program: path.program,
         text,
         report,
+        ring,
     })
 }
 
@@ -597,23 +603,28 @@ fn check_delta(
     Ok((linear, angular))
 }
 
-/// The X at which the ring is clear of the work all round.
-///
-/// Internal: the ring centred on the axis (X = 0); its tip circle, tilted by δ, stays at least
-/// R·cos δ from the axis, so it clears a workpiece of radius ρ_max when R·cos δ − r > ρ_max.
-/// External: the disk beside the work, its nearest point at X − R − r from the axis.
-fn clear_x(ring: &Ring, rho_max: f64) -> Result<f64, Misfit> {
-    match ring.whirling {
-        Whirling::Internal => {
-            let room = ring.radius * ring.installation.cos() - ring.nose - rho_max;
-            if room <= 0.0 {
-                return Err(Misfit::Clearance {
-                    reach: ring.radius * ring.installation.cos() - ring.nose,
-                    rho_max,
-                });
-            }
-            Ok(0.0)
-        }
-        Whirling::External => Ok(ring.radius + ring.nose + rho_max + CLEARANCE),
+/// The X at which a ring of radius `radius` and nose `nose` is clear of the work all round,
+/// whatever its tilt, if it clears it at all: internal, centred on the axis (X = 0); external,
+/// the disk beside the work, its nearest point at X − R − r from the axis.
+fn clear_position(whirling: Whirling, radius: f64, nose: f64, rho_max: f64) -> f64 {
+    match whirling {
+        Whirling::Internal => 0.0,
+        Whirling::External => radius + nose + rho_max + CLEARANCE,
     }
+}
+
+/// The X at which the ring is clear of the work all round ([`clear_position`]), or why it
+/// cannot be: an internal ring's tip circle, tilted by δ, stays at least R·cos δ from the
+/// axis, so it clears a workpiece of radius ρ_max when R·cos δ − r > ρ_max.
+fn clear_x(ring: &Ring, rho_max: f64) -> Result<f64, Misfit> {
+    let reach = ring.radius * ring.installation.cos() - ring.nose;
+    if ring.whirling == Whirling::Internal && reach <= rho_max {
+        return Err(Misfit::Clearance { reach, rho_max });
+    }
+    Ok(clear_position(
+        ring.whirling,
+        ring.radius,
+        ring.nose,
+        rho_max,
+    ))
 }

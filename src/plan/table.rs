@@ -100,6 +100,29 @@ impl Table {
         linkage: &Linkage,
         tolerance: f64,
     ) -> Result<Table, TableError> {
+        Self::sample(profile, linkage, tolerance, false)
+    }
+
+    /// [`build`](Self::build), stopping at the first sample where ψ turns back: the same table
+    /// where `build` gives one, and an error wherever `build` gives one, though where ψ turns
+    /// back before `build`'s own refusal the error names that sample instead. A refused angle
+    /// costs the installation-angle search (`crate::plan::angles`) what the table cost up to
+    /// the turn, not the refinement of every fold down to its last sample.
+    pub fn probe(
+        profile: &Profile,
+        linkage: &Linkage,
+        tolerance: f64,
+    ) -> Result<Table, TableError> {
+        Self::sample(profile, linkage, tolerance, true)
+    }
+
+    /// The table, `build`'s or, with `stop_at_turn`, `probe`'s.
+    fn sample(
+        profile: &Profile,
+        linkage: &Linkage,
+        tolerance: f64,
+        stop_at_turn: bool,
+    ) -> Result<Table, TableError> {
         let solve = |u: f64| -> Result<Sample, TableError> {
             let point = profile.point(u);
             linkage
@@ -129,11 +152,26 @@ impl Table {
         }
         us.push(profile.length());
         let mut done: Vec<Sample> = Vec::with_capacity(us.len() * 4);
-        let mut pending: Vec<Sample> = us
-            .iter()
-            .rev()
-            .map(|&u| solve(u))
-            .collect::<Result<_, _>>()?;
+        let mut pending: Vec<Sample> = if stop_at_turn {
+            let mut turns = Turns::new(profile.period());
+            let mut solved = Vec::with_capacity(us.len());
+            for &u in &us {
+                let sample = solve(u)?;
+                if let Some(last) = solved.last() {
+                    if turns.sure_after(last, &sample) {
+                        return Err(turned_back(&sample));
+                    }
+                }
+                solved.push(sample);
+            }
+            solved.reverse();
+            solved
+        } else {
+            us.iter()
+                .rev()
+                .map(|&u| solve(u))
+                .collect::<Result<_, _>>()?
+        };
         // Depth-first refinement: `pending` is a stack with the next sample on top.
         let mut first = pending.pop().expect("at least one sample");
         first.contact.phase = first.contact.phase.rem_euclid(TAU);
@@ -162,6 +200,18 @@ impl Table {
                     angle_deg: mid.pos.to_angle().to_degrees(),
                     jump,
                 });
+            }
+            // ψ must run one way (`check_monotonic`): a step against an earlier one, or none,
+            // refuses the table whatever comes after.
+            if stop_at_turn {
+                let step = next.contact.phase - prev.contact.phase;
+                let before = done
+                    .len()
+                    .checked_sub(2)
+                    .map(|i| prev.contact.phase - done[i].contact.phase);
+                if step == 0.0 || before.is_some_and(|b| b * step <= 0.0) {
+                    return Err(turned_back(&next));
+                }
             }
             done.push(next);
         }
@@ -216,15 +266,56 @@ pub fn chord_deviation(a: &Sample, b: &Sample, mid: &Sample) -> f64 {
     (mid.contact.pose.x - lin).abs() * mid.contact.normal_x
 }
 
+/// Whether ψ turns back, as far as the samples the refinement starts from show it, taken in
+/// order along the profile.
+///
+/// Refinement only adds samples between these, so were the table to pass, ψ would run one
+/// way from each to the next, over one period in all: by Δ, all of one sign. Each Δ is known
+/// here only up to whole turns, as the difference w taken within ±π. Where the period is at
+/// most π (two starts or more), |Δ| < π, so w = Δ: two w of opposite signs, or a zero one,
+/// show the turn. With one start a single span may take more than half the period, and its
+/// w then has the other sign; two such spans cannot both (they would pass a whole turn), so
+/// only two w against each sign show it.
+struct Turns {
+    /// Spans a passing table may have against its direction: 0, or 1 with one start.
+    allowed: usize,
+    /// Spans seen with w ≤ 0, and with w ≥ 0.
+    not_up: usize,
+    not_down: usize,
+}
+
+impl Turns {
+    fn new(period: f64) -> Turns {
+        Turns {
+            allowed: usize::from(period > std::f64::consts::PI),
+            not_up: 0,
+            not_down: 0,
+        }
+    }
+
+    /// Counts the span from `a` to `b`; whether the table is now sure to be refused.
+    fn sure_after(&mut self, a: &Sample, b: &Sample) -> bool {
+        let d = b.contact.phase - a.contact.phase;
+        let w = d - TAU * (d / TAU).round();
+        self.not_up += usize::from(w <= 0.0);
+        self.not_down += usize::from(w >= 0.0);
+        self.not_up > self.allowed && self.not_down > self.allowed
+    }
+}
+
+/// The refusal of a table whose phase turns back at `s`.
+fn turned_back(s: &Sample) -> TableError {
+    TableError::PhaseTurnsBack {
+        x: s.pos.x,
+        y: s.pos.y,
+        angle_deg: s.pos.to_angle().to_degrees(),
+    }
+}
+
 /// ψ must run one way over the whole period and cover exactly one period.
 fn check_monotonic(samples: &[Sample], period: f64) -> Result<(), TableError> {
     let total = samples[samples.len() - 1].contact.phase - samples[0].contact.phase;
     let dir = total.signum();
-    let turned_back = |s: &Sample| TableError::PhaseTurnsBack {
-        x: s.pos.x,
-        y: s.pos.y,
-        angle_deg: s.pos.to_angle().to_degrees(),
-    };
     for pair in samples.windows(2) {
         if (pair[1].contact.phase - pair[0].contact.phase) * dir <= 0.0 {
             return Err(turned_back(&pair[1]));
@@ -342,6 +433,66 @@ mod tests {
             "{e}"
         );
         assert!(e.to_string().contains("another branch"));
+    }
+
+    #[test]
+    fn the_probe_builds_where_build_does_and_refuses_where_it_refuses() {
+        // Across the angles, rings and leads of the refusals above (ψ turning back, a branch
+        // switch, out of reach) and of tables that build; and on a one-start groove, where a
+        // single span of the start samples may take more than half the period.
+        let one_start = {
+            let rows: Vec<crate::geometry::profile::points::Row> = (0..48)
+                .map(|k| {
+                    let phi = TAU * f64::from(k) / 48.0;
+                    let rho = 20.0 - 2.0 * phi.cos();
+                    crate::geometry::profile::points::Row {
+                        line: k as usize + 1,
+                        a: rho * phi.cos(),
+                        b: rho * phi.sin(),
+                    }
+                })
+                .collect();
+            crate::geometry::profile::points::profile(
+                &rows,
+                crate::geometry::profile::points::Section::Transverse,
+                false,
+                10.0 / TAU,
+                1,
+            )
+            .unwrap()
+        };
+        let cases = [
+            (lobe(60.0), 60.0, 40.0),
+            (lobe(60.0), 60.0, 50.0),
+            (lobe(60.0), 60.0, 36.5),
+            (lobe(5.0), 5.0, 10.0),
+            (one_start, 10.0, 40.0),
+        ];
+        let (mut built, mut refused) = (0, 0);
+        for (profile, lead, radius) in &cases {
+            for step in 0..=24 {
+                let l = linkage(*radius, 2.5 * f64::from(step), *lead);
+                let probe = Table::probe(profile, &l, 1e-4);
+                match Table::build(profile, &l, 1e-4) {
+                    Ok(table) => {
+                        built += 1;
+                        assert_eq!(
+                            probe.unwrap().samples,
+                            table.samples,
+                            "{lead} {radius} {step}"
+                        );
+                    }
+                    Err(e) => {
+                        refused += 1;
+                        assert!(probe.is_err(), "{lead} {radius} {step}: {e}");
+                    }
+                }
+            }
+        }
+        assert!(
+            built > 10 && refused > 10,
+            "{built} built, {refused} refused"
+        );
     }
 
     #[test]

@@ -394,7 +394,9 @@ fn a_linuxcnc_plan_slows_its_linked_moves_until_every_blend_is_within_the_share(
     // the lead predicted over its first 1500 lines: at most 3.12 µm (3.19 µm measured), three
     // times the share.
     let mut then = job.clone();
-    then.tool.installation_angle_deg = Some(job.ring().installation.to_degrees());
+    let (rho_min, rho_max) = job.profile.radius_range();
+    let mean_lead = (job.p().abs() / ((rho_min + rho_max) / 2.0)).atan();
+    then.tool.installation_angle_deg = Some(mean_lead.to_degrees());
     let then = plan_with(&then, &linuxcnc, &segment::Interpolating).unwrap();
     let (then_posted, then_lines) =
         read_program_with_lines(&then.text, linuxcnc.x_diameter()).unwrap();

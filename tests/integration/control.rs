@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 
 use whirl::config::job::Job;
 use whirl::config::machine::MachineProfile;
+use whirl::geometry::linkage::Ring;
 use whirl::judge::dry_run::{dry_run, DryRunOptions, DryRunReport};
 use whirl::log::{Event, ExecLog, Record};
 use whirl::program::Position;
@@ -19,13 +20,14 @@ use whirl::transport::{control, Control, Posted, TransportKind};
 
 use crate::util;
 
-/// The double-start example planned for `profile`, as the machine gets it.
-fn posted(profile: &str) -> (Job, MachineProfile, Posted) {
+/// The double-start example planned for `profile`: the job, the machine, the ring it was
+/// planned with and the program as the machine gets it.
+fn posted(profile: &str) -> (Job, MachineProfile, Ring, Posted) {
     let job = Job::load(&util::example("double-start")).unwrap();
     let machine = MachineProfile::load(&util::root().join(profile)).unwrap();
     let plan = whirl::plan::plan(&job, &machine).unwrap();
     let posted = Posted::read("double-start", &plan.text, &machine).unwrap();
-    (job, machine, posted)
+    (job, machine, plan.ring, posted)
 }
 
 /// The double-start example planned for `profile`, dry-run over `transport` while
@@ -35,7 +37,7 @@ fn run_with(
     profile: &str,
     operator: impl FnOnce(Control, ExecLog) + Send + 'static,
 ) -> (DryRunReport, Vec<Record>) {
-    let (job, machine, posted) = posted(profile);
+    let (job, machine, ring, posted) = posted(profile);
     let log = ExecLog::memory();
     let (control, commands) = control();
     let watched = log.clone();
@@ -49,7 +51,14 @@ fn run_with(
         .enable_all()
         .build()
         .unwrap()
-        .block_on(dry_run(&job, &machine, &posted, options, &mut log.clone()))
+        .block_on(dry_run(
+            &job,
+            ring,
+            &machine,
+            &posted,
+            options,
+            &mut log.clone(),
+        ))
         .expect("the dry run is carried out");
     operator.join().expect("the operator's checks hold");
     (report, log.records())
@@ -224,7 +233,7 @@ fn a_stop_says_where_to_resume_and_the_machine_stands_on_that_line_on_every_tran
             _ => None,
         });
         assert_eq!(logged, Some(line), "{transport}: the log's resume line");
-        let (_, _, posted) = posted(profile);
+        let (_, _, _, posted) = posted(profile);
         let index = posted
             .move_lines
             .iter()

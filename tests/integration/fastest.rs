@@ -165,8 +165,14 @@ fn breaks(job: &Job, machine: &MachineProfile, bound: &FeedBound, tolerance: f64
             }
             planned => {
                 let plan = planned.unwrap();
-                let v = whirl::judge::verify::verify(&at(job, feed), machine, &plan.text, false)
-                    .unwrap();
+                let v = whirl::judge::verify::verify(
+                    &at(job, feed),
+                    plan.ring,
+                    machine,
+                    &plan.text,
+                    false,
+                )
+                .unwrap();
                 assert!(
                     v.max_overcut_mm.max(v.max_undercut_mm) > tolerance,
                     "{feed} mm measures {} / {} mm, within {tolerance}",

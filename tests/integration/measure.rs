@@ -26,9 +26,9 @@ const ANGLE_OFF: f64 = 0.3;
 /// The measuring machine's noise along the section's normal, mm (a standard deviation).
 const NOISE: f64 = 0.0005;
 
-/// The ring the parts are really cut with.
-fn real(job: &Job) -> Ring {
-    let ring = job.ring();
+/// The ring the parts are really cut with: the one their program was planned with, set up
+/// off by the injected error.
+fn real(ring: Ring) -> Ring {
     Ring {
         radius: ring.radius + RING_OFF,
         installation: ring.installation + ANGLE_OFF.to_radians(),
@@ -48,11 +48,13 @@ fn cut_by(job: &Job, ring: Ring) -> Target {
     .unwrap()
 }
 
-/// The motion of `job` planned for the simulator, as `whirl plan` plans it.
-fn planned(job: &Job) -> Motion {
+/// The motion of `job` planned for the simulator, as `whirl plan` plans it, and the ring it
+/// was planned with.
+fn planned(job: &Job) -> (Motion, Ring) {
     let machine = MachineProfile::builtin_sim().unwrap();
-    let text = whirl::judge::refine::plan(job, &machine).unwrap().text;
-    Motion::new(&read_program(&text, machine.x_diameter()).unwrap()).unwrap()
+    let plan = whirl::judge::refine::plan(job, &machine).unwrap();
+    let program = read_program(&plan.text, machine.x_diameter()).unwrap();
+    (Motion::new(&program).unwrap(), plan.ring)
 }
 
 /// Normal deviates, deterministic: xorshift64* and Box–Muller.
@@ -186,8 +188,8 @@ fn a_part_cut_with_the_wrong_tool_is_fitted_corrected_and_cut_again_within_delta
     let job_path = util::example("trapezoidal");
     let job = Job::load(&job_path).unwrap();
     let delta = job.cut.delta;
-    let motion = planned(&job);
-    let tool = cut_by(&job, real(&job));
+    let (motion, ring) = planned(&job);
+    let tool = cut_by(&job, real(ring));
     let dir = tempfile::tempdir().unwrap();
     let z_mid = job.groove.z_start + job.groove.length / 2.0;
     let csv = measured_csv(&job, &tool, &motion, &spread(&job, 200), z_mid);
@@ -216,7 +218,6 @@ fn a_part_cut_with_the_wrong_tool_is_fitted_corrected_and_cut_again_within_delta
 
     // The injected tool, recovered within three standard errors, and those errors small
     // enough to mean something: a tenth of the injected offsets.
-    let ring = job.ring();
     let truth = [
         ("ring_radius_mm", ring.radius + RING_OFF, RING_OFF / 10.0),
         ("nose_radius_mm", ring.nose, RING_OFF / 10.0),
@@ -250,7 +251,7 @@ fn a_part_cut_with_the_wrong_tool_is_fitted_corrected_and_cut_again_within_delta
     );
     let again = Job::load(&corrected).unwrap();
     assert_eq!(again.groove.lead, job.groove.lead);
-    let m = tool.measure(&planned(&again)).unwrap();
+    let m = tool.measure(&planned(&again).0).unwrap();
     assert!(
         m.max_overcut_mm <= delta && m.max_undercut_mm <= delta,
         "the corrected part: overcut {} undercut {} mm\n{out}",
@@ -286,8 +287,8 @@ fn a_part_cut_with_the_wrong_tool_is_fitted_corrected_and_cut_again_within_delta
 fn a_job_corrected_into_another_folder_names_its_profile_points_from_there() {
     let job_path = util::example("double-start");
     let job = Job::load(&job_path).unwrap();
-    let motion = planned(&job);
-    let tool = cut_by(&job, real(&job));
+    let (motion, ring) = planned(&job);
+    let tool = cut_by(&job, real(ring));
     let dir = tempfile::tempdir().unwrap();
     let csv = measured_csv(&job, &tool, &motion, &spread(&job, 80), 0.0);
     let section = util::write(dir.path(), "section.csv", &csv);
@@ -310,6 +311,51 @@ fn a_job_corrected_into_another_folder_names_its_profile_points_from_there() {
     assert!((again.tool.nose_radius - fitted("nose_radius_mm")).abs() <= 0.5e-4);
     let angle = again.tool.installation_angle_deg.unwrap();
     assert!((angle - fitted("installation_angle_deg")).abs() <= 0.5e-4);
+}
+
+#[test]
+fn a_job_without_an_angle_is_fitted_from_the_angle_it_was_planned_at() {
+    // The double-start job gives no installation angle: `whirl plan` planned it at the middle
+    // of its window, and its part was cut by that program with the ring set up 0.3° off it.
+    // The fit starts from the angle the program was planned at, reports it as the job's, and
+    // finds the angle the part was cut with.
+    let job_path = util::example("double-start");
+    let job = Job::load(&job_path).unwrap();
+    assert_eq!(job.tool.installation_angle_deg, None);
+    let (motion, ring) = planned(&job);
+    let (window_angle, _) = whirl::plan::angles::ring(&job).unwrap();
+    assert_eq!(ring, window_angle);
+    let tool = cut_by(&job, real(ring));
+    let dir = tempfile::tempdir().unwrap();
+    let csv = measured_csv(&job, &tool, &motion, &spread(&job, 200), 0.0);
+    let section = util::write(dir.path(), "section.csv", &csv);
+    let (code, out, err) = measure(&job_path, &section, dir.path(), &[]);
+    assert_eq!(code, Some(2), "{out}\n{err}");
+    let (corrected, report, _) = outputs(dir.path());
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let angle = &r["fit"]["installation_angle_deg"];
+    let planned_at = ring.installation.to_degrees();
+    assert!(
+        (angle["job"].as_f64().unwrap() - planned_at).abs() < 1e-9,
+        "{angle}: planned at {planned_at}°"
+    );
+    let (fitted, se) = (
+        angle["fitted"].as_f64().unwrap(),
+        angle["standard_error"].as_f64().unwrap(),
+    );
+    assert!(
+        (fitted - (planned_at + ANGLE_OFF)).abs() <= 3.0 * se && 3.0 * se < ANGLE_OFF / 10.0,
+        "fitted {fitted} ± {se}°, cut at {}°\n{out}",
+        planned_at + ANGLE_OFF
+    );
+    // The corrected job says what it changed from: the angle the program was planned at.
+    let text = std::fs::read_to_string(&corrected).unwrap();
+    let note = format!(
+        "installation_angle_deg {} -> ",
+        whirl::plan::angles::show_deg(planned_at)
+    );
+    assert!(text.contains(&note), "{text}");
 }
 
 /// A CMM file of the trapezoidal example with `header` and `rows` after it.

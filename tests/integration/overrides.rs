@@ -94,7 +94,14 @@ fn run_at(
         .enable_all()
         .build()
         .unwrap()
-        .block_on(dry_run(job, machine, &posted, options, &mut log.clone()))
+        .block_on(dry_run(
+            job,
+            plan.ring,
+            machine,
+            &posted,
+            options,
+            &mut log.clone(),
+        ))
         .expect("the dry run is carried out");
     operator.join().expect("the operator's checks hold");
     (report, log.records())

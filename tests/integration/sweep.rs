@@ -184,20 +184,21 @@ fn golden(f: impl Fn(f64) -> f64, mut a: f64, mut b: f64) -> f64 {
     f1.min(f2)
 }
 
-/// Plan an example, read its program text back, measure.
-fn planned(name: &str) -> (Job, Profile, f64, Program, whirl::plan::Report) {
+/// Plan an example and read its program text back; the plan says the ring it was planned
+/// with (the installation angle a job that gives none plans at).
+fn planned(name: &str) -> (Job, Profile, Program, whirl::plan::Plan) {
     let job = Job::load(&util::example(name)).unwrap();
     let machine = MachineProfile::builtin_sim().unwrap();
     let plan = whirl::plan::plan(&job, &machine).unwrap();
     let program = read_program(&plan.text, machine.x_diameter()).unwrap();
     let profile = job.profile.clone();
-    let delta = plan.report.installation_angle_deg;
-    (job, profile, delta, program, plan.report)
+    (job, profile, program, plan)
 }
 
 fn assert_within_delta(name: &str) {
-    let (job, profile, delta_deg, program, report) = planned(name);
-    let m = measure(&job, &profile, delta_deg, &program);
+    let (job, profile, program, plan) = planned(name);
+    let (report, ring) = (&plan.report, plan.ring);
+    let m = measure(&job, &profile, report.installation_angle_deg, &program);
     let delta = job.cut.delta;
     eprintln!(
         "{name}: measured overcut {:.5} mm, undercut {:.5} mm; planner's bound {:.5} mm; Δ {delta} mm",
@@ -213,15 +214,19 @@ fn assert_within_delta(name: &str) {
         "{name}: undercut {} > Δ {delta}",
         m.undercut
     );
-    engine_agrees(&job, &profile, &program, &m);
+    engine_agrees(&job, ring, &profile, &program, &m);
 }
 
-/// `whirl verify`'s engine measures the same error at the same points as the brute force.
-fn engine_agrees(job: &Job, profile: &Profile, program: &Program, brute: &Measured) {
-    let linkage = whirl::geometry::linkage::Linkage {
-        p: job.p(),
-        ring: job.ring(),
-    };
+/// `whirl verify`'s engine, with the ring the program was planned with, measures the same
+/// error at the same points as the brute force.
+fn engine_agrees(
+    job: &Job,
+    ring: whirl::geometry::linkage::Ring,
+    profile: &Profile,
+    program: &Program,
+    brute: &Measured,
+) {
+    let linkage = whirl::geometry::linkage::Linkage { p: job.p(), ring };
     let z_range = (job.groove.z_start, job.groove.z_start + job.groove.length);
     let target = Target::new(
         profile.clone(),
@@ -259,7 +264,7 @@ fn axial_standard_trapezoidal_stays_within_delta() {
 fn the_brute_force_sees_a_coarse_program() {
     // Drop every other linked move: spans twice as long break the interpolation bound, and the
     // check must see it (it is no use if it passes everything).
-    let (job, profile, delta_deg, program, _) = planned("double-start");
+    let (job, profile, program, plan) = planned("double-start");
     let mut keep = true;
     let mut moves = Vec::new();
     for action in &program.moves {
@@ -272,8 +277,8 @@ fn the_brute_force_sees_a_coarse_program() {
         moves.push(action.clone());
     }
     let coarse = Program { moves };
-    let m = measure(&job, &profile, delta_deg, &coarse);
-    engine_agrees(&job, &profile, &coarse, &m);
+    let m = measure(&job, &profile, plan.report.installation_angle_deg, &coarse);
+    engine_agrees(&job, plan.ring, &profile, &coarse, &m);
     assert!(
         m.overcut.max(m.undercut) > job.cut.delta,
         "a program with spans twice as long must leave more than Δ: {} / {}",

@@ -24,6 +24,7 @@ use std::process::ExitCode;
 use terminal::say;
 use whirl::config::job::Job;
 use whirl::config::machine::{Dialect, MachineProfile};
+use whirl::geometry::linkage::Ring;
 use whirl::judge::dry_run::{self, DryRunOptions};
 use whirl::judge::linuxcnc::LinuxcncDryRunOptions;
 use whirl::log::ExecLog;
@@ -204,7 +205,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
                     if let Some(job) = job {
                         let job = Job::load(&job)?;
                         plots.push(
-                            whirl::judge::plots::section_plot(&read, &job)
+                            whirl::judge::plots::section_plot(&read, &job, planned_ring(&job)?)
                                 .with_context(|| format!("{}", log.display()))?,
                         );
                     }
@@ -233,7 +234,8 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             let job = fastest::resolve(Job::load(&job)?, &machine, Some(&program))?;
             let text = std::fs::read_to_string(&program)
                 .with_context(|| format!("cannot read {}", program.display()))?;
-            let v = whirl::judge::verify::verify(&job, &machine, &text, svg.is_some())
+            let ring = planned_ring(&job)?;
+            let v = whirl::judge::verify::verify(&job, ring, &machine, &text, svg.is_some())
                 .with_context(|| format!("cannot verify {}", program.display()))?;
             let json = serde_json::to_string_pretty(&v)?;
             files::write_all(&[
@@ -288,7 +290,7 @@ fn plan(
     record.planned(&plan);
     let mut verified = None;
     if verify {
-        let v = whirl::judge::verify::verify(&job, &machine, &plan.text, false)
+        let v = whirl::judge::verify::verify(&job, plan.ring, &machine, &plan.text, false)
             .context("cannot verify the planned program")?;
         if !v.within_delta {
             anyhow::bail!(
@@ -453,12 +455,13 @@ fn dry_run(
         );
     }
     let job = fastest::resolve(Job::load(&paths.job)?, &machine, paths.program.as_deref())?;
-    let (name, text, cap) = match &paths.program {
+    let (name, text, cap, ring) = match &paths.program {
         Some(path) => (
             path.display().to_string(),
             std::fs::read_to_string(path)
                 .with_context(|| format!("cannot read {}", path.display()))?,
             None,
+            planned_ring(&job)?,
         ),
         None => {
             let plan = whirl::judge::refine::plan(&job, &machine)
@@ -469,7 +472,12 @@ fn dry_run(
                 Controller::Linuxcnc => TransportKind::Linuxcnc,
             };
             let cap = transport::control::feed_cap(&plan.report, kind);
-            (paths.job.display().to_string(), plan.text, Some(cap))
+            (
+                paths.job.display().to_string(),
+                plan.text,
+                Some(cap),
+                plan.ring,
+            )
         }
     };
     let cap = keys::start_cap(
@@ -499,7 +507,9 @@ fn dry_run(
     }
     let r = match controller {
         Controller::WhirlSim => runtime()?
-            .block_on(dry_run::dry_run(&job, &machine, &posted, options, &mut log))
+            .block_on(dry_run::dry_run(
+                &job, ring, &machine, &posted, options, &mut log,
+            ))
             .map_err(anyhow::Error::from),
         Controller::Linuxcnc => {
             let options = LinuxcncDryRunOptions {
@@ -512,7 +522,7 @@ fn dry_run(
             };
             runtime()?
                 .block_on(whirl::judge::linuxcnc::dry_run(
-                    &job, &machine, &posted, options, &mut log,
+                    &job, ring, &machine, &posted, options, &mut log,
                 ))
                 .map_err(anyhow::Error::from)
         }
@@ -575,6 +585,16 @@ fn runtime() -> Result<tokio::runtime::Runtime> {
     Ok(tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()?)
+}
+
+/// The ring `whirl plan` plans `job` with: tilted by its installation angle, or where it gives
+/// none, by the window's angle of largest margin. What a program of the job planned before is
+/// measured with.
+fn planned_ring(job: &Job) -> Result<Ring> {
+    let (ring, _) = whirl::plan::angles::ring(job)
+        .map_err(whirl::plan::PlanError::NoAngle)
+        .with_context(|| format!("cannot plan {}", job_name(job)))?;
+    Ok(ring)
 }
 
 fn job_name(job: &Job) -> String {

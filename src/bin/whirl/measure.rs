@@ -100,9 +100,9 @@ pub(crate) fn run(args: MeasureArgs) -> Result<ExitCode> {
             ),
             None => None,
         };
-        let motion = fit::motion(&job, &machine, program.as_deref())?;
+        let cut = fit::motion(&job, &machine, program.as_deref())?;
         Some(
-            fit::fit(&job, &motion, &deviations.points)
+            fit::fit(&job, &cut, &deviations.points)
                 .with_context(|| format!("{name}: cannot fit the tool"))?,
         )
     } else {

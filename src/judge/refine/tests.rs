@@ -28,11 +28,9 @@ fn machine(name: &str) -> MachineProfile {
 }
 
 /// The largest error `whirl verify` measures of `plan`'s program over the whole groove, mm,
-/// for `job` with the installation angle the plan used (a job may leave it to the planner).
+/// with the ring the plan used (a job may leave its angle to the planner).
 fn verified(job: &Job, machine: &MachineProfile, plan: &Plan) -> f64 {
-    let mut job = job.clone();
-    job.tool.installation_angle_deg = Some(plan.report.installation_angle_deg);
-    let v = verify(&job, machine, &plan.text, false).expect("the program is measured");
+    let v = verify(job, plan.ring, machine, &plan.text, false).expect("the program is measured");
     v.max_overcut_mm.max(v.max_undercut_mm)
 }
 

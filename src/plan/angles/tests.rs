@@ -117,7 +117,9 @@ fn an_edge_where_the_ring_cuts_a_flank_is_bisected_on_the_whole_check() {
     };
     assert!(cut.depth > job.cut.delta / 10.0, "{cut}");
     assert!(
-        fit_table(&job, &tilted(&job, low.beyond.as_ref().unwrap().0)).is_ok(),
+        Search::new(&job)
+            .check(steps(low.beyond.as_ref().unwrap().0), false)
+            .is_none(),
         "the table alone passes beyond it"
     );
     assert_edges_hold(&job, &found);
@@ -257,5 +259,28 @@ fn the_survey_plans_across_the_window_its_edges_included() {
         assert_eq!(row.margin_deg, w.margin(row.deg));
         let (error, segments) = row.planned.clone().unwrap();
         assert!(error <= job.cut.delta && segments > 0, "{row:?}");
+    }
+}
+
+#[test]
+fn the_search_finds_what_fit_finds_at_every_scan_angle() {
+    // The search builds the finer table alone, stops it where ψ first turns back, and runs
+    // the interference check on it: its verdict is `fit`'s, and so is its refusal once
+    // `reason` has given a refused table `fit`'s own words.
+    for job in [example("ball-screw"), trapezoidal_with_ring(20.8)] {
+        let search = Search::new(&job);
+        let (mut fits, mut refused) = (0, 0);
+        for at in scan_angles(&job) {
+            let expected = fit(&job, &tilted(&job, degrees(at))).err();
+            let found = search.check(at, true);
+            assert_eq!(found.is_none(), expected.is_none(), "{at}: {expected:?}");
+            if let Some(why) = found {
+                refused += 1;
+                assert_eq!(Some(search.reason(at, why)), expected, "{at}");
+            } else {
+                fits += 1;
+            }
+        }
+        assert!(fits > 0 && refused > 0, "{fits} {refused}");
     }
 }
