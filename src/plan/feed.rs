@@ -8,7 +8,9 @@
 //!   refuses the job ([`Limit::Budget`]); nodes get denser on the way, so moves get shorter;
 //! - the rate at which the controller must take blocks ([`Limit::BlockRate`]): every linked
 //!   move must last at least 1 / the profile's `max_block_rate`, or its family's default
-//!   ([`MachineProfile::block_rate`]; on CANopen drives, one set-point a SYNC cycle);
+//!   ([`MachineProfile::block_rate`]; on CANopen drives, one set-point a SYNC cycle), which
+//!   the planner itself refuses ([`crate::plan::blocks`]), or on grbl the moves must not outrun
+//!   the blocks it prepares ahead;
 //! - the link's bytes ([`Limit::Link`]): on a serial line to grbl every line must arrive
 //!   within the time its move runs (else the planner starves), and on Modbus RTU every
 //!   segment's frames;
@@ -251,6 +253,8 @@ pub fn evaluate(
         ),
         // No choice of nodes within Δ: the measured error grows with the feed's scallop.
         Err(PlanError::Nodes(e)) => bound(Limit::Delta, e.0),
+        // A move shorter than a block on a controller whose rate bounds every move.
+        Err(PlanError::BlockTime(e)) => bound(Limit::BlockRate, e.to_string()),
         // Fewer turns take C less far: only a travel limit of C is lifted by a higher feed.
         Err(PlanError::Limits { limit })
             if !matches!(limit, LimitError::Travel { axis: Axis::C, .. }) =>
@@ -411,28 +415,24 @@ pub fn sustained(
         })
         .collect();
     let runs: Vec<f64> = moves.iter().map(|&(_, seconds)| seconds).collect();
+    // A rate that bounds every move `plan` holds every move to (crate::plan::blocks); one the
+    // controller sustains over blocks it prepares ahead is the program's as a whole.
     let rate = machine.block_rate();
     let per_block = 1.0 / rate.per_second;
-    let waits = match rate.ahead {
-        None => runs.iter().position(|&run| run < per_block),
-        Some(ahead) => first_wait(&runs, |_| per_block, ahead),
-    };
-    if let Some(i) = waits {
+    if let Some(i) = rate
+        .ahead
+        .and_then(|ahead| first_wait(&runs, |_| per_block, ahead))
+    {
         let (line, seconds) = moves[i];
-        let how = match rate.ahead {
-            None => "every move must last one block".to_owned(),
-            Some(ahead) => format!(
-                "the moves before it run out the {ahead} blocks the controller prepares ahead"
-            ),
-        };
         return Ok(Some((
             Limit::BlockRate,
             format!(
                 "the move on line {line} ({:.2} ms) comes faster than {} blocks a second ({}): \
-                 {how}",
+                 the moves before it run out the {} blocks the controller prepares ahead",
                 seconds * 1e3,
                 rate.per_second,
-                rate.source
+                rate.source,
+                rate.ahead.unwrap_or_default()
             ),
         )));
     }

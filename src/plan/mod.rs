@@ -6,6 +6,7 @@
 //! before anything is written.
 
 pub mod angles;
+pub mod blocks;
 pub mod budget;
 pub mod feed;
 pub mod interference;
@@ -226,6 +227,9 @@ pub enum PlanError {
     /// The post-processor refused it.
     #[error(transparent)]
     Post(#[from] writer::PostError),
+    /// A linked move shorter than the block every move must last on the machine.
+    #[error(transparent)]
+    BlockTime(#[from] blocks::TooShort),
     /// No feed plans an `axial_feed = "auto"` job.
     #[error(transparent)]
     Feed(#[from] feed::FeedError),
@@ -484,6 +488,7 @@ pub fn plan_with(
         }
         _ => blending::Capped::default(),
     };
+    blocks::check(&path.program, &text, machine, job.cut.workpiece_rpm)?;
     let report = Report {
         segments: path.segments,
         nodes_per_period: nodes.per_period(),
