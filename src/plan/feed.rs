@@ -38,6 +38,7 @@ use crate::config::job::show_figure;
 use crate::config::job::Job;
 use crate::config::machine::{Axis, Dialect, MachineProfile};
 use crate::geometry::linkage::Whirling;
+use crate::plan::angles::Resolved;
 use crate::plan::budget::MIN_INTERPOLATION_SHARE;
 use crate::plan::scallop::pass_spacing;
 use crate::plan::segment::NodeChoice;
@@ -210,12 +211,13 @@ pub fn at(job: &Job, feed: f64) -> Job {
 }
 
 /// Plan `job` at `feed`, `choice` choosing the nodes, and hold the program to the machine's
-/// limits.
+/// limits; the ring from `angle`, which the search shares over its feeds.
 pub fn evaluate(
     job: &Job,
     machine: &MachineProfile,
     feed: f64,
     choice: &dyn NodeChoice,
+    angle: &Resolved,
 ) -> Result<Outcome<Box<Plan>>, PlanError> {
     let pitch = job.groove.lead / f64::from(job.groove.starts);
     if feed >= pitch {
@@ -235,7 +237,7 @@ pub fn evaluate(
             why,
         }))
     };
-    match crate::plan::plan_with(&at(job, feed), machine, choice) {
+    match crate::plan::plan_resolved(&at(job, feed), machine, choice, angle) {
         Ok(plan) => match sustained(job, machine, &plan, feed)? {
             None => Ok(Outcome::Passes(Box::new(plan))),
             Some((limit, why)) => bound(limit, why),
@@ -276,8 +278,9 @@ pub fn fastest(
     machine: &MachineProfile,
     choice: &dyn NodeChoice,
 ) -> Result<Fastest, PlanError> {
+    let angle = Resolved::default();
     let found = search(job.cut.axial_feed, None, |feed| {
-        evaluate(job, machine, feed, choice)
+        evaluate(job, machine, feed, choice, &angle)
     })?;
     let mut plan = *found.passed;
     plan.report.feed_bound = Some(found.bound.clone());

@@ -141,7 +141,9 @@ fn a_programs_feed_is_read_back_from_its_linked_moves() {
 fn a_feed_of_the_pitch_is_refused_without_planning() {
     let job = example("trapezoidal");
     // Lead 14 mm, 2 starts: a pitch of 7 mm.
-    let Outcome::TooFast(bound) = evaluate(&job, &machine("sim"), 7.0, &Estimated).unwrap() else {
+    let Outcome::TooFast(bound) =
+        evaluate(&job, &machine("sim"), 7.0, &Estimated, &Resolved::default()).unwrap()
+    else {
         panic!("a feed of a whole pitch passes");
     };
     assert_eq!(bound.limit, Limit::Pitch);
@@ -153,7 +155,9 @@ fn a_feed_of_the_pitch_is_refused_without_planning() {
 fn a_feed_whose_scallop_eats_the_budget_is_refused_as_too_fast() {
     // Double-start: its scallop passes 80 % of Δ below 0.6 mm a revolution.
     let job = example("double-start");
-    let Outcome::TooFast(bound) = evaluate(&job, &machine("sim"), 0.6, &Estimated).unwrap() else {
+    let Outcome::TooFast(bound) =
+        evaluate(&job, &machine("sim"), 0.6, &Estimated, &Resolved::default()).unwrap()
+    else {
         panic!("0.6 mm a revolution plans");
     };
     assert_eq!(bound.limit, Limit::Budget);
@@ -172,7 +176,9 @@ fn a_move_shorter_than_a_block_breaks_the_block_rate_on_a_plc() {
     let shortest = runs(&plan, &plc).into_iter().fold(f64::INFINITY, f64::min);
     plc.max_block_rate = Some(0.999 / shortest);
     let feed = job.cut.axial_feed;
-    let Outcome::TooFast(bound) = evaluate(&job, &plc, feed, &Estimated).unwrap() else {
+    let Outcome::TooFast(bound) =
+        evaluate(&job, &plc, feed, &Estimated, &Resolved::default()).unwrap()
+    else {
         panic!("a move shorter than a block passes");
     };
     assert_eq!(bound.limit, Limit::BlockRate);
@@ -183,7 +189,7 @@ fn a_move_shorter_than_a_block_breaks_the_block_rate_on_a_plc() {
     );
     plc.max_block_rate = Some(1.001 / shortest);
     assert!(matches!(
-        evaluate(&job, &plc, feed, &Estimated).unwrap(),
+        evaluate(&job, &plc, feed, &Estimated, &Resolved::default()).unwrap(),
         Outcome::Passes(_)
     ));
 }
@@ -367,13 +373,15 @@ fn a_feed_at_which_the_choice_finds_no_nodes_within_delta_is_refused_by_delta() 
     job.groove.length = 4.0;
     let sim = machine("sim");
     let choice = RefusesAbove { most: 0.2 };
-    let Outcome::TooFast(bound) = evaluate(&job, &sim, 0.25, &choice).unwrap() else {
+    let Outcome::TooFast(bound) =
+        evaluate(&job, &sim, 0.25, &choice, &Resolved::default()).unwrap()
+    else {
         panic!("0.25 mm a revolution plans");
     };
     assert_eq!(bound.limit, Limit::Delta);
     assert_eq!(bound.why, "beyond Δ at 0.25");
     assert!(matches!(
-        evaluate(&job, &sim, 0.15, &choice).unwrap(),
+        evaluate(&job, &sim, 0.15, &choice, &Resolved::default()).unwrap(),
         Outcome::Passes(_)
     ));
     let mut auto = job.clone();
