@@ -15,6 +15,7 @@ use crate::config::job::{show_figure, Job};
 use crate::config::machine::MachineProfile;
 use crate::judge::refine::Refine;
 use crate::judge::verify::{verify, CheckError, Verification};
+use crate::plan::angles::Resolved;
 use crate::plan::feed::{self, FeedBound, Limit, Outcome};
 use crate::plan::{Plan, PlanError};
 
@@ -70,9 +71,10 @@ pub fn fastest_within(
     }
     let start = planned.job.cut.axial_feed;
     let refused = beyond(start, &measured, tolerance);
+    let angle = Resolved::default();
     let found = feed::search(start, Some(refused), |f| {
         let at = feed::at(job, f);
-        Ok::<_, FastestError>(match feed::evaluate(job, machine, f, &Refine)? {
+        Ok::<_, FastestError>(match feed::evaluate(job, machine, f, &Refine, &angle)? {
             Outcome::Passes(plan) => {
                 let measured = measure(&at, machine, &plan)?;
                 if within(&measured) {

@@ -545,6 +545,19 @@ pub fn ring(job: &Job) -> Result<(Ring, AngleOrigin), NoWindow> {
     Ok((tilted(job, deg).ring, origin))
 }
 
+/// The ring a job plans with ([`ring`]), found at most once and then kept: the angle does not
+/// depend on the feed (`fit`'s checks do not), so the fastest feed's search finds the window
+/// of a job that gives no angle once for every feed it plans.
+#[derive(Debug, Default)]
+pub struct Resolved(std::sync::OnceLock<Result<(Ring, AngleOrigin), NoWindow>>);
+
+impl Resolved {
+    /// [`ring`] of `job`, or what it gave before; for jobs that differ in their feed alone.
+    pub fn ring(&self, job: &Job) -> Result<(Ring, AngleOrigin), NoWindow> {
+        self.0.get_or_init(|| ring(job)).clone()
+    }
+}
+
 /// What `plan` makes of the job at one angle of a window.
 #[derive(Debug, Clone)]
 pub struct Row {

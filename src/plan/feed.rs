@@ -8,7 +8,9 @@
 //!   refuses the job ([`Limit::Budget`]); nodes get denser on the way, so moves get shorter;
 //! - the rate at which the controller must take blocks ([`Limit::BlockRate`]): every linked
 //!   move must last at least 1 / the profile's `max_block_rate`, or its family's default
-//!   ([`MachineProfile::block_rate`]; on CANopen drives, one set-point a SYNC cycle);
+//!   ([`MachineProfile::block_rate`]; on CANopen drives, one set-point a SYNC cycle), which
+//!   the planner itself refuses ([`crate::plan::blocks`]), or on grbl the moves must not outrun
+//!   the blocks it prepares ahead;
 //! - the link's bytes ([`Limit::Link`]): on a serial line to grbl every line must arrive
 //!   within the time its move runs (else the planner starves), and on Modbus RTU every
 //!   segment's frames;
@@ -36,6 +38,7 @@ use crate::config::job::show_figure;
 use crate::config::job::Job;
 use crate::config::machine::{Axis, Dialect, MachineProfile};
 use crate::geometry::linkage::Whirling;
+use crate::plan::angles::Resolved;
 use crate::plan::budget::MIN_INTERPOLATION_SHARE;
 use crate::plan::scallop::pass_spacing;
 use crate::plan::segment::NodeChoice;
@@ -208,12 +211,13 @@ pub fn at(job: &Job, feed: f64) -> Job {
 }
 
 /// Plan `job` at `feed`, `choice` choosing the nodes, and hold the program to the machine's
-/// limits.
+/// limits; the ring from `angle`, which the search shares over its feeds.
 pub fn evaluate(
     job: &Job,
     machine: &MachineProfile,
     feed: f64,
     choice: &dyn NodeChoice,
+    angle: &Resolved,
 ) -> Result<Outcome<Box<Plan>>, PlanError> {
     let pitch = job.groove.lead / f64::from(job.groove.starts);
     if feed >= pitch {
@@ -233,7 +237,7 @@ pub fn evaluate(
             why,
         }))
     };
-    match crate::plan::plan_with(&at(job, feed), machine, choice) {
+    match crate::plan::plan_resolved(&at(job, feed), machine, choice, angle) {
         Ok(plan) => match sustained(job, machine, &plan, feed)? {
             None => Ok(Outcome::Passes(Box::new(plan))),
             Some((limit, why)) => bound(limit, why),
@@ -251,6 +255,8 @@ pub fn evaluate(
         ),
         // No choice of nodes within Δ: the measured error grows with the feed's scallop.
         Err(PlanError::Nodes(e)) => bound(Limit::Delta, e.0),
+        // A move shorter than a block on a controller whose rate bounds every move.
+        Err(PlanError::BlockTime(e)) => bound(Limit::BlockRate, e.to_string()),
         // Fewer turns take C less far: only a travel limit of C is lifted by a higher feed.
         Err(PlanError::Limits { limit })
             if !matches!(limit, LimitError::Travel { axis: Axis::C, .. }) =>
@@ -272,8 +278,9 @@ pub fn fastest(
     machine: &MachineProfile,
     choice: &dyn NodeChoice,
 ) -> Result<Fastest, PlanError> {
+    let angle = Resolved::default();
     let found = search(job.cut.axial_feed, None, |feed| {
-        evaluate(job, machine, feed, choice)
+        evaluate(job, machine, feed, choice, &angle)
     })?;
     let mut plan = *found.passed;
     plan.report.feed_bound = Some(found.bound.clone());
@@ -411,28 +418,24 @@ pub fn sustained(
         })
         .collect();
     let runs: Vec<f64> = moves.iter().map(|&(_, seconds)| seconds).collect();
+    // A rate that bounds every move `plan` holds every move to (crate::plan::blocks); one the
+    // controller sustains over blocks it prepares ahead is the program's as a whole.
     let rate = machine.block_rate();
     let per_block = 1.0 / rate.per_second;
-    let waits = match rate.ahead {
-        None => runs.iter().position(|&run| run < per_block),
-        Some(ahead) => first_wait(&runs, |_| per_block, ahead),
-    };
-    if let Some(i) = waits {
+    if let Some(i) = rate
+        .ahead
+        .and_then(|ahead| first_wait(&runs, |_| per_block, ahead))
+    {
         let (line, seconds) = moves[i];
-        let how = match rate.ahead {
-            None => "every move must last one block".to_owned(),
-            Some(ahead) => format!(
-                "the moves before it run out the {ahead} blocks the controller prepares ahead"
-            ),
-        };
         return Ok(Some((
             Limit::BlockRate,
             format!(
                 "the move on line {line} ({:.2} ms) comes faster than {} blocks a second ({}): \
-                 {how}",
+                 the moves before it run out the {} blocks the controller prepares ahead",
                 seconds * 1e3,
                 rate.per_second,
-                rate.source
+                rate.source,
+                rate.ahead.unwrap_or_default()
             ),
         )));
     }

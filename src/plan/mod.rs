@@ -6,6 +6,7 @@
 //! before anything is written.
 
 pub mod angles;
+pub mod blocks;
 pub mod budget;
 pub mod feed;
 pub mod interference;
@@ -226,6 +227,9 @@ pub enum PlanError {
     /// The post-processor refused it.
     #[error(transparent)]
     Post(#[from] writer::PostError),
+    /// A linked move shorter than the block every move must last on the machine.
+    #[error(transparent)]
+    BlockTime(#[from] blocks::TooShort),
     /// No feed plans an `axial_feed = "auto"` job.
     #[error(transparent)]
     Feed(#[from] feed::FeedError),
@@ -318,6 +322,17 @@ pub fn plan_with(
     if job.cut.auto_feed {
         return feed::fastest(job, machine, choice).map(|fastest| fastest.plan);
     }
+    plan_resolved(job, machine, choice, &angles::Resolved::default())
+}
+
+/// [`plan_with`] of a job whose feed is given, its ring taken from `angle` (found there once
+/// for every feed of the job).
+pub(crate) fn plan_resolved(
+    job: &Job,
+    machine: &MachineProfile,
+    choice: &dyn segment::NodeChoice,
+    angle: &angles::Resolved,
+) -> Result<Plan, PlanError> {
     let profile = &job.profile;
     let p = job.p();
     let nose = job.tool.nose_radius;
@@ -364,7 +379,7 @@ pub fn plan_with(
         });
     }
     // The installation angle: the job's, or the one with the largest margin in its windows.
-    let (ring, angle_origin) = angles::ring(job)?;
+    let (ring, angle_origin) = angle.ring(job)?;
     let linkage = Linkage { p, ring };
     let tolerance = TABLE_SHARE * delta;
     let angles::Fitted { table, x_clear } =
@@ -484,6 +499,7 @@ pub fn plan_with(
         }
         _ => blending::Capped::default(),
     };
+    blocks::check(&path.program, &text, machine, job.cut.workpiece_rpm)?;
     let report = Report {
         segments: path.segments,
         nodes_per_period: nodes.per_period(),

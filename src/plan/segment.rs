@@ -14,10 +14,13 @@
 //! through the corridor allows, starting from any point the previous span can end at (the
 //! window of Imai and Iri's piecewise-linear approximation). The lines a span may take form a
 //! convex polygon in the plane of (start value, slope), cut down by two half-planes per
-//! sample; the span ends where the next sample would leave it empty. A backward pass then picks
-//! each vertex in the middle of what the span after it allows. The pattern is periodic: it
-//! starts and ends at the same X, chosen among a few values across the first sample's corridor
-//! for the fewest spans.
+//! sample; the span ends where the next sample would leave it empty. Their number fixed, the
+//! breakpoints are then balanced (`balanced`): a controller that takes a block a scan or a
+//! cycle runs a move shorter than that slower than planned, and reaching as far as each span
+//! can leaves the period's slack to a sliver at its end. A backward pass then picks each vertex
+//! in the middle of what the span after it allows. The pattern is periodic: it starts and ends
+//! at the same X, chosen among a few values across the first sample's corridor for the fewest
+//! spans, and of those, the longest shortest span.
 
 use crate::config::job::Job;
 use crate::geometry::linkage::{turn, Linkage, Pose};
@@ -329,6 +332,8 @@ impl Pass<'_> {
 /// The corridor of X around the table: at sample i, X may lie in `[lo[i], hi[i]]`.
 struct Corridor {
     psi: Vec<f64>,
+    /// The table's X at each sample, which a span's lines are taken relative to, mm.
+    x: Vec<f64>,
     lo: Vec<f64>,
     hi: Vec<f64>,
     /// Larger than the slope of any line that stays in the corridor, mm/rad.
@@ -381,6 +386,7 @@ impl Corridor {
         lo[last] = lo[0];
         hi[last] = hi[0];
         let psi: Vec<f64> = samples.iter().map(|s| s.contact.phase).collect();
+        let x = samples.iter().map(|s| s.contact.pose.x).collect();
         let slope = (1..n)
             .map(|i| {
                 let d = psi[i] - psi[i - 1];
@@ -388,7 +394,25 @@ impl Corridor {
             })
             .fold(1.0, f64::max)
             * 2.0;
-        Corridor { psi, lo, hi, slope }
+        Corridor {
+            psi,
+            x,
+            lo,
+            hi,
+            slope,
+        }
+    }
+
+    /// The same corridor taken backwards: the samples in reverse order, ψ negated.
+    fn reversed(&self) -> Corridor {
+        let back = |v: &[f64]| v.iter().rev().copied().collect::<Vec<f64>>();
+        Corridor {
+            psi: self.psi.iter().rev().map(|p| -p).collect(),
+            x: back(&self.x),
+            lo: back(&self.lo),
+            hi: back(&self.hi),
+            slope: self.slope,
+        }
     }
 }
 
@@ -464,11 +488,11 @@ struct Span {
     lines: Polygon,
 }
 
-/// The fewest spans through the corridor from `start` at the first sample back to `start` at
-/// the last, each reaching as far as it can.
-fn spans(c: &Corridor, table: &Table, start: f64) -> Vec<Span> {
+/// Spans through the corridor from `start` at the first sample to `start` at the last, each
+/// reaching as far as it can but no further than `stop(k, a)` for the k-th span (from 0)
+/// starting at sample `a`. With no stop short of the last sample, the fewest spans.
+fn spans(c: &Corridor, start: f64, stop: impl Fn(usize, usize) -> usize) -> Vec<Span> {
     let last = c.psi.len() - 1;
-    let x = |i: usize| table.samples[i].contact.pose.x;
     // The pattern closes: it ends where it starts.
     let bounds = |i: usize| {
         if i == last || i == 0 {
@@ -481,10 +505,11 @@ fn spans(c: &Corridor, table: &Table, start: f64) -> Vec<Span> {
     let (mut a, mut window) = (0, bounds(0));
     let (mut tmp, mut next) = (Polygon::default(), Polygon::default());
     while a < last {
-        let xa = x(a);
+        let xa = c.x[a];
+        let end = stop(out.len(), a).min(last);
         let mut lines = Polygon::rect(window.0 - xa, window.1 - xa, c.slope);
         let mut b = a;
-        while b < last {
+        while b < end {
             let (lo, hi) = bounds(b + 1);
             lines.band(
                 c.psi[b + 1] - c.psi[a],
@@ -513,22 +538,76 @@ fn spans(c: &Corridor, table: &Table, start: f64) -> Vec<Span> {
     out
 }
 
+/// The fewest spans at `start` ([`spans`]) with their breakpoints balanced: no span shorter
+/// than it need be. `None` where balancing does not keep their number.
+///
+/// Each span reaching as far as it can puts the slack of the whole period into the last
+/// span, which may end up a sliver (left-external on the PLC: 5.1 ms among spans of 30 to
+/// 60). Taken backwards from the end, the same greedy reach gives how early each breakpoint
+/// may lie and still leave the rest of the period to the spans after it; taken forwards it
+/// gives how late. Between the two, each span here ends as near as it can to an even share of
+/// what is left of the period (ψ runs at a steady rate, so that is an even share of the time),
+/// and no earlier than the spans after it need.
+fn balanced(c: &Corridor, start: f64, count: usize) -> Option<Vec<Span>> {
+    let last = c.psi.len() - 1;
+    let back = spans(&c.reversed(), start, |_, _| usize::MAX);
+    if back.len() != count {
+        return None;
+    }
+    // The earliest end of the k-th span: where the backward spans, count − 1 − k of them from
+    // the end, reach back to; the last sample for the last span (or any past it, where the
+    // spans come to more than `count` after all).
+    let earliest = |k: usize| match count.checked_sub(k + 2) {
+        Some(j) => last - back[j].b,
+        None => last,
+    };
+    let chosen = spans(c, start, |k, a| {
+        let left = count.saturating_sub(k).max(1);
+        let share = c.psi[a] + (c.psi[last] - c.psi[a]) / left as f64;
+        let even = c.psi.partition_point(|&psi| psi < share);
+        even.max(earliest(k))
+    });
+    (chosen.len() == count).then_some(chosen)
+}
+
 /// The best approximation of the table's X(ψ) within `rooms` by the fewest spans (see the
-/// module's comment), for the ring along `pass`.
+/// module's comment), for the ring along `pass`, its breakpoints balanced.
 pub fn approximate(table: &Table, rooms: &Rooms, pass: &Pass) -> Nodes {
     let c = Corridor::new(table, rooms, pass);
     let (lo, hi) = (c.lo[0], c.hi[0]);
-    let (start, best) = CLOSURES
+    let greedy: Vec<(f64, Vec<Span>)> = CLOSURES
         .iter()
         .map(|t| lo + (hi - lo) * t)
-        .map(|v| (v, spans(&c, table, v)))
-        .min_by_key(|(_, s)| s.len())
+        .map(|v| (v, spans(&c, v, |_, _| usize::MAX)))
+        .collect();
+    let fewest = greedy
+        .iter()
+        .map(|(_, s)| s.len())
+        .min()
         .expect("at least one start");
+    // Of the closures with the fewest spans, the one whose shortest balanced span is longest;
+    // the first unbalanced if none balances.
+    let shortest = |s: &[Span]| {
+        s.iter()
+            .map(|span| c.psi[span.b] - c.psi[span.a])
+            .fold(f64::INFINITY, f64::min)
+    };
+    let (start, best) = greedy
+        .iter()
+        .filter(|(_, s)| s.len() == fewest)
+        .filter_map(|&(v, _)| balanced(&c, v, fewest).map(|s| (v, s)))
+        .max_by(|(_, a), (_, b)| shortest(a).total_cmp(&shortest(b)))
+        .unwrap_or_else(|| {
+            greedy
+                .into_iter()
+                .find(|(_, s)| s.len() == fewest)
+                .expect("a start with the fewest spans")
+        });
     // Backwards: each vertex in the middle of the start values the span allows, given where
     // it ends.
     let mut xs = vec![start; best.len() + 1];
     for (k, span) in best.iter().enumerate().rev() {
-        let xa = table.samples[span.a].contact.pose.x;
+        let xa = c.x[span.a];
         let d = c.psi[span.b] - c.psi[span.a];
         xs[k] = xa + span.lines.start_ending_at(d, xs[k + 1] - xa);
     }
@@ -708,6 +787,41 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn on_a_uniform_corridor_no_span_is_shorter_than_half_the_mean() {
+        // X = 4ψ(1 − ψ) has the same curvature everywhere, so every span can reach the same
+        // width, √h for a band of height h: 1/√h = 10.1 takes 11 spans. Reaching as far as
+        // each can leaves the last a tenth of the others' width; balanced, they share the
+        // period evenly, and none is shorter than half the mean.
+        let n = 20_000;
+        let h = 1.0 / (10.1f64 * 10.1);
+        let t = table(n, -1.0, |p| 4.0 * p * (1.0 - p));
+        let r = rooms(n, h / 2.0, h / 2.0);
+        let ring = far_ring();
+        let pass = Pass::new(&ring, 0.0);
+        let nodes = approximate(&t, &r, &pass);
+        assert_eq!(nodes.per_period(), 11);
+        let mean = 1.0 / nodes.per_period() as f64;
+        let widths: Vec<f64> = nodes
+            .nodes
+            .windows(2)
+            .map(|w| w[1].phase - w[0].phase)
+            .collect();
+        assert!(
+            widths.iter().all(|&w| w >= mean / 2.0),
+            "{widths:?} against a mean of {mean}"
+        );
+        // The greedy reach alone, at the start chosen: a sliver.
+        let c = Corridor::new(&t, &r, &pass);
+        let greedy = spans(&c, nodes.nodes[0].x, |_, _| usize::MAX);
+        assert_eq!(greedy.len(), 11);
+        let narrowest = greedy
+            .iter()
+            .map(|s| c.psi[s.b] - c.psi[s.a])
+            .fold(f64::INFINITY, f64::min);
+        assert!(narrowest < mean / 2.0, "{narrowest}");
     }
 
     #[test]

@@ -245,11 +245,10 @@ fn every_example_dry_runs_within_delta_on_can_drives_over_slcan() {
                     assert!(load > 0.0 && load < 0.2, "{name}: {load}");
                     // The simulator's own record: the drives' path is one unbroken line
                     // of set-point cycles, as long as the set-points, ending where the
-                    // program does.
-                    let planned =
-                        whirl::plan::plan(&whirl::config::job::Job::load(job).unwrap(), profile)
-                            .unwrap()
-                            .program;
+                    // program does: the one `whirl dry-run` planned and sent, its nodes
+                    // measured by the engine.
+                    let job = whirl::config::job::Job::load(job).unwrap();
+                    let planned = whirl::judge::refine::plan(&job, profile).unwrap().program;
                     let end = planned
                         .steps(Position::known(0.0, 0.0, 0.0))
                         .last()

@@ -181,16 +181,22 @@ fn breaks(job: &Job, machine: &MachineProfile, bound: &FeedBound, tolerance: f64
                 );
             }
         },
+        // Where the rate bounds every move, the planner refuses a program with a move shorter
+        // than a block.
+        Limit::BlockRate if machine.block_rate().ahead.is_none() => {
+            let Err(PlanError::BlockTime(e)) = planned else {
+                panic!("{feed} mm is not refused for a move shorter than a block: {planned:?}");
+            };
+            assert!(e.seconds * e.per_second < 1.0, "{e}");
+        }
         Limit::BlockRate | Limit::Link | Limit::Chip => {
             let plan = planned.unwrap();
             let moves = linked_moves(&plan.text, machine.x_diameter());
             match bound.limit {
                 Limit::BlockRate => {
                     let rate = machine.block_rate();
-                    let broken = match rate.ahead {
-                        None => moves.iter().any(|m| m.seconds * rate.per_second < 1.0),
-                        Some(ahead) => waits(&moves, |_| 1.0 / rate.per_second, ahead),
-                    };
+                    let ahead = rate.ahead.expect("a rate sustained over blocks ahead");
+                    let broken = waits(&moves, |_| 1.0 / rate.per_second, ahead);
                     assert!(broken, "{feed} mm keeps to {} blocks/s", rate.per_second);
                 }
                 Limit::Link => {

@@ -39,10 +39,10 @@ fn the_examples_plan_on_the_modbus_and_can_machines() {
             assert!(linear <= 4 && angular <= 4, "{path:?}: {linear}, {angular}");
             check_limits(&plan.program, machine).unwrap();
             // Modbus: every block fits a segment, and the shortest linked move is within
-            // a controller that takes 55 segments a second (the profile's comment).
+            // a controller that takes 44 segments a second (the profile's comment).
             let segments = whirl::post::modbus::segments(&plan.program)
                 .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-            whirl::post::modbus::check_rate(&segments, 55)
+            whirl::post::modbus::check_rate(&segments, 44)
                 .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             // CAN: X and Z stay in INTEGER32 counts, and every linked move spans at
             // least four cycles.

@@ -141,7 +141,9 @@ fn a_programs_feed_is_read_back_from_its_linked_moves() {
 fn a_feed_of_the_pitch_is_refused_without_planning() {
     let job = example("trapezoidal");
     // Lead 14 mm, 2 starts: a pitch of 7 mm.
-    let Outcome::TooFast(bound) = evaluate(&job, &machine("sim"), 7.0, &Estimated).unwrap() else {
+    let Outcome::TooFast(bound) =
+        evaluate(&job, &machine("sim"), 7.0, &Estimated, &Resolved::default()).unwrap()
+    else {
         panic!("a feed of a whole pitch passes");
     };
     assert_eq!(bound.limit, Limit::Pitch);
@@ -153,7 +155,9 @@ fn a_feed_of_the_pitch_is_refused_without_planning() {
 fn a_feed_whose_scallop_eats_the_budget_is_refused_as_too_fast() {
     // Double-start: its scallop passes 80 % of Δ below 0.6 mm a revolution.
     let job = example("double-start");
-    let Outcome::TooFast(bound) = evaluate(&job, &machine("sim"), 0.6, &Estimated).unwrap() else {
+    let Outcome::TooFast(bound) =
+        evaluate(&job, &machine("sim"), 0.6, &Estimated, &Resolved::default()).unwrap()
+    else {
         panic!("0.6 mm a revolution plans");
     };
     assert_eq!(bound.limit, Limit::Budget);
@@ -162,27 +166,32 @@ fn a_feed_whose_scallop_eats_the_budget_is_refused_as_too_fast() {
 
 #[test]
 fn a_move_shorter_than_a_block_breaks_the_block_rate_on_a_plc() {
-    // On the Modbus PLC every move must last one block: a controller a little slower than one
-    // block for the program's shortest move refuses it, naming the move's line; a little
+    // On the Modbus PLC every move must last one block, and the planner refuses a program
+    // with a shorter one: on a controller a little slower than one block for the program's
+    // shortest move, the feed is too fast for the block rate, naming the move's line; a little
     // faster takes it.
     let job = example("left-external");
     let mut plc = machine("modbus-plc");
     let plan = crate::plan::plan(&job, &plc).unwrap();
     let shortest = runs(&plan, &plc).into_iter().fold(f64::INFINITY, f64::min);
     plc.max_block_rate = Some(0.999 / shortest);
-    let (limit, why) = sustained(&job, &plc, &plan, job.cut.axial_feed)
-        .unwrap()
-        .unwrap();
-    assert_eq!(limit, Limit::BlockRate);
+    let feed = job.cut.axial_feed;
+    let Outcome::TooFast(bound) =
+        evaluate(&job, &plc, feed, &Estimated, &Resolved::default()).unwrap()
+    else {
+        panic!("a move shorter than a block passes");
+    };
+    assert_eq!(bound.limit, Limit::BlockRate);
     assert!(
-        why.contains("line ") && why.contains("every move must last one block"),
-        "{why}"
+        bound.why.contains("line ") && bound.why.contains("which every move must last"),
+        "{}",
+        bound.why
     );
     plc.max_block_rate = Some(1.001 / shortest);
-    assert_eq!(
-        sustained(&job, &plc, &plan, job.cut.axial_feed).unwrap(),
-        None
-    );
+    assert!(matches!(
+        evaluate(&job, &plc, feed, &Estimated, &Resolved::default()).unwrap(),
+        Outcome::Passes(_)
+    ));
 }
 
 #[test]
@@ -364,13 +373,15 @@ fn a_feed_at_which_the_choice_finds_no_nodes_within_delta_is_refused_by_delta() 
     job.groove.length = 4.0;
     let sim = machine("sim");
     let choice = RefusesAbove { most: 0.2 };
-    let Outcome::TooFast(bound) = evaluate(&job, &sim, 0.25, &choice).unwrap() else {
+    let Outcome::TooFast(bound) =
+        evaluate(&job, &sim, 0.25, &choice, &Resolved::default()).unwrap()
+    else {
         panic!("0.25 mm a revolution plans");
     };
     assert_eq!(bound.limit, Limit::Delta);
     assert_eq!(bound.why, "beyond Δ at 0.25");
     assert!(matches!(
-        evaluate(&job, &sim, 0.15, &choice).unwrap(),
+        evaluate(&job, &sim, 0.15, &choice, &Resolved::default()).unwrap(),
         Outcome::Passes(_)
     ));
     let mut auto = job.clone();
