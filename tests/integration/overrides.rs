@@ -125,10 +125,14 @@ fn stop_after_linked_moves(control: &Control, log: &ExecLog, percent: u16) {
             control.stop("the test has seen enough");
             return;
         }
-        assert!(
-            since.elapsed() < Duration::from_secs(300),
-            "waited five minutes for 300 linked moves at {percent} %"
-        );
+        if since.elapsed() > Duration::from_secs(300) {
+            let overrides: Vec<_> = records
+                .iter()
+                .filter(|r| matches!(r.event, Event::FeedOverride { .. }))
+                .map(|r| &r.event)
+                .collect();
+            panic!("waited five minutes for 300 linked moves at {percent} % ({linked} seen); the log's feed overrides: {overrides:?}");
+        }
         std::thread::sleep(Duration::from_millis(5));
     }
 }

@@ -63,3 +63,52 @@ fn a_controller_without_ov_is_reported_not_taking_the_override() {
     );
     assert_eq!(s.transmit(), None);
 }
+
+#[test]
+fn reports_owed_to_queries_before_the_byte_do_not_count_against_it() {
+    // A controller lagging behind its link: five `?` go out unanswered, then the byte.
+    let mut s = started();
+    for tick in 1..=5 {
+        assert!(s.poll(DEFAULT_POLL_INTERVAL * tick));
+        assert_eq!(s.transmit(), Some(vec![realtime::STATUS]));
+    }
+    s.feed_override(120);
+    assert_eq!(s.transmit(), Some(vec![RESET]));
+    // Their five answers, then all but one of the reports the byte is given: not yet.
+    for _ in 0..5 + UNCONFIRMED_REPORTS - 1 {
+        s.receive(&report(None));
+    }
+    let not_taken = |events: &[Event]| {
+        events
+            .iter()
+            .any(|e| matches!(e, Event::FeedOverrideNotTaken { .. }))
+    };
+    assert!(!not_taken(&s.events().collect::<Vec<_>>()));
+    s.receive(&report(None));
+    assert!(not_taken(&s.events().collect::<Vec<_>>()));
+}
+
+#[test]
+fn a_banner_forgets_the_queries_written_before_it() {
+    // Three `?` written while the controller boots: it never answers them.
+    let config = StreamerConfig {
+        wait_for_banner: true,
+        check_state: false,
+        ..no_query()
+    };
+    let mut s = Streamer::new(program(&["G4 P0"]), config).unwrap();
+    for tick in 1..=3 {
+        assert!(s.poll(DEFAULT_POLL_INTERVAL * tick));
+        assert_eq!(s.transmit(), Some(vec![realtime::STATUS]));
+    }
+    s.receive(b"\r\nGrbl 1.1h ['$' for help]\r\n");
+    s.feed_override(120);
+    let sent = s.transmit().unwrap();
+    assert_eq!(sent[0], RESET, "{sent:?}");
+    for _ in 0..UNCONFIRMED_REPORTS {
+        s.receive(&report(None));
+    }
+    assert!(s
+        .events()
+        .any(|e| matches!(e, Event::FeedOverrideNotTaken { .. })));
+}
