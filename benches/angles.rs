@@ -7,7 +7,6 @@
 //! is `cargo bench --bench planner`'s `plan_example`.
 
 use divan::{black_box, Bencher};
-use std::path::Path;
 use whirl::config::job::Job;
 use whirl::config::machine::MachineProfile;
 use whirl::geometry::linkage::Linkage;
@@ -15,16 +14,11 @@ use whirl::plan::angles;
 use whirl::plan::interference;
 use whirl::plan::table::Table;
 
+mod common;
+use common::example;
+
 fn main() {
     divan::main();
-}
-
-fn example(name: &str) -> Job {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("examples")
-        .join(name)
-        .join("job.toml");
-    Job::load(&path).expect("example job")
 }
 
 /// The window of a job: narrow (trapezoidal, ball screw) and wide (double-start, where the

@@ -7,9 +7,11 @@
 //! docs/planner.md the feeds and machine times found.
 
 use divan::{black_box, Bencher};
-use std::path::Path;
 use whirl::config::job::Job;
 use whirl::config::machine::MachineProfile;
+
+mod common;
+use common::example;
 
 fn main() {
     divan::main();
@@ -17,11 +19,7 @@ fn main() {
 
 /// An example's job, its feed set to auto.
 fn auto(name: &str) -> Job {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("examples")
-        .join(name)
-        .join("job.toml");
-    let mut job = Job::load(&path).unwrap();
+    let mut job = example(name);
     job.cut.auto_feed = true;
     job
 }

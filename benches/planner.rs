@@ -7,12 +7,13 @@
 use divan::{black_box, Bencher};
 use glam::DVec2;
 use std::f64::consts::{PI, TAU};
-use std::path::Path;
-use whirl::config::job::Job;
 use whirl::config::machine::MachineProfile;
 use whirl::geometry::linkage::{Linkage, Ring, Whirling};
 use whirl::geometry::profile::points::{self, Section};
 use whirl::geometry::profile::ProfilePoint;
+
+mod common;
+use common::example;
 
 fn main() {
     divan::main();
@@ -55,14 +56,6 @@ fn node_solves(bencher: Bencher) {
             black_box(linkage.solve(black_box(p)).ok());
         }
     });
-}
-
-fn example(name: &str) -> Job {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("examples")
-        .join(name)
-        .join("job.toml");
-    Job::load(&path).expect("example job")
 }
 
 /// Every example job, planned whole as `whirl plan` plans it but for the file writes: nodes

@@ -202,15 +202,8 @@ impl Guard for DeltaGuard {
 mod tests {
     use super::*;
     use crate::judge::simulator::machine;
+    use crate::testing::example;
     use whirl_sim::{Controller, ControllerOptions, MachineState};
-
-    fn example(name: &str) -> Job {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("examples")
-            .join(name)
-            .join("job.toml");
-        Job::load(&path).expect("the example loads")
-    }
 
     /// The ring `plan` plans `job` with.
     fn ring(job: &Job) -> Ring {

@@ -3,23 +3,8 @@
 
 use super::*;
 use crate::geometry::profile::points::{self, Row, Section};
+use crate::testing::{example, machine};
 use std::f64::consts::PI;
-use std::path::Path;
-
-fn example(name: &str) -> Job {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("examples")
-        .join(name)
-        .join("job.toml");
-    Job::load(&path).expect("example job")
-}
-
-fn machine(name: &str) -> MachineProfile {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("machine-profiles")
-        .join(format!("{name}.toml"));
-    MachineProfile::load(&path).expect("machine profile")
-}
 
 /// The double-start example (radii 26 to 34 mm, lead 60 mm) with Δ = `delta`, bypassing the
 /// job file's checks as a program building its own job could.

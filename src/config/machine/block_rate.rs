@@ -173,38 +173,20 @@ pub(super) fn check(profile: &MachineProfile) -> Result<(), (String, String)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::path::Path;
-
-    fn profile(file: &str) -> MachineProfile {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("machine-profiles")
-            .join(file);
-        MachineProfile::load(&path).unwrap()
-    }
-
-    fn text(file: &str) -> String {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("machine-profiles")
-            .join(file);
-        std::fs::read_to_string(path).unwrap()
-    }
+    use crate::testing::{machine, machine_text};
 
     #[test]
     fn each_profile_gets_its_familys_rate() {
         // One segment tick (10 ms), 1.02 trajectory periods of 1 ms, one PLC scan (10 ms), one
         // 4 ms SYNC cycle.
         for (file, family, rate) in [
-            ("sim.toml", Family::Grbl, 100.0),
-            ("grblhal-lathe.toml", Family::Grbl, 100.0),
-            ("linuxcnc-lathe.toml", Family::LinuxCnc, 1000.0 / 1.02),
-            ("modbus-plc.toml", Family::Modbus, 100.0),
-            (
-                "canopen-drives.toml",
-                Family::CanOpen { cycle_us: 4000 },
-                250.0,
-            ),
+            ("sim", Family::Grbl, 100.0),
+            ("grblhal-lathe", Family::Grbl, 100.0),
+            ("linuxcnc-lathe", Family::LinuxCnc, 1000.0 / 1.02),
+            ("modbus-plc", Family::Modbus, 100.0),
+            ("canopen-drives", Family::CanOpen { cycle_us: 4000 }, 250.0),
         ] {
-            let p = profile(file);
+            let p = machine(file);
             assert_eq!(p.family(), family, "{file}");
             let got = p.block_rate().per_second;
             assert!((got / rate - 1.0).abs() < 1e-12, "{file}: {got}");
@@ -213,7 +195,7 @@ mod tests {
 
     #[test]
     fn a_profiles_own_rate_wins() {
-        let t = format!("max_block_rate = 40.0\n{}", text("sim.toml"));
+        let t = format!("max_block_rate = 40.0\n{}", machine_text("sim"));
         let p = MachineProfile::from_toml(&t, "sim.toml").unwrap();
         let rate = p.block_rate();
         assert_eq!(rate.per_second, 40.0);
@@ -223,7 +205,7 @@ mod tests {
     #[test]
     fn a_rate_of_zero_or_less_is_refused_naming_the_file_and_the_key() {
         for bad in ["0", "0.0", "-5.0", "nan", "inf"] {
-            let t = format!("max_block_rate = {bad}\n{}", text("grblhal-lathe.toml"));
+            let t = format!("max_block_rate = {bad}\n{}", machine_text("grblhal-lathe"));
             let e = MachineProfile::from_toml(&t, "machine-profiles/grblhal-lathe.toml")
                 .unwrap_err()
                 .to_string();
@@ -240,7 +222,7 @@ mod tests {
     #[test]
     fn can_drives_take_no_more_than_one_set_point_a_cycle() {
         // 4 ms cycles: 250 a second at most.
-        let t = format!("max_block_rate = 251.0\n{}", text("canopen-drives.toml"));
+        let t = format!("max_block_rate = 251.0\n{}", machine_text("canopen-drives"));
         let e = MachineProfile::from_toml(&t, "canopen-drives.toml")
             .unwrap_err()
             .to_string();
@@ -248,7 +230,7 @@ mod tests {
             e.contains("max_block_rate") && e.contains("250 a second") && e.contains("cycle_us"),
             "{e}"
         );
-        let t = format!("max_block_rate = 250.0\n{}", text("canopen-drives.toml"));
+        let t = format!("max_block_rate = 250.0\n{}", machine_text("canopen-drives"));
         assert!(MachineProfile::from_toml(&t, "canopen-drives.toml").is_ok());
     }
 }

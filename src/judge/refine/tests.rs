@@ -8,24 +8,9 @@ use crate::geometry::linkage::{Linkage, Whirling};
 use crate::geometry::profile::points::{self, Row, Section};
 use crate::judge::verify::verify;
 use crate::plan::segment::{AgainstInterpolation, Estimated};
+use crate::testing::{example, machine};
 use proptest::prelude::*;
 use std::cell::Cell;
-use std::path::Path;
-
-fn example(name: &str) -> Job {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("examples")
-        .join(name)
-        .join("job.toml");
-    Job::load(&path).expect("the example loads")
-}
-
-fn machine(name: &str) -> MachineProfile {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("machine-profiles")
-        .join(format!("{name}.toml"));
-    MachineProfile::load(&path).expect("the machine profile loads")
-}
 
 /// The largest error `whirl verify` measures of `plan`'s program over the whole groove, mm,
 /// with the ring the plan used (a job may leave its angle to the planner).

@@ -5,15 +5,7 @@
 use super::*;
 use crate::config::machine::MachineProfile;
 use crate::plan::plan;
-use std::path::Path;
-
-fn example(name: &str) -> Job {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("examples")
-        .join(name)
-        .join("job.toml");
-    Job::load(&path).expect("example job")
-}
+use crate::testing::example;
 
 fn sim() -> MachineProfile {
     MachineProfile::builtin_sim().expect("the built-in machine profile")

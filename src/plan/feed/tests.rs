@@ -4,27 +4,8 @@
 use super::*;
 use crate::plan::segment::{Choice, Estimated, NodeError, Problem};
 use crate::program::Move;
+use crate::testing::{example, machine, machine_text};
 use std::f64::consts::{PI, TAU};
-use std::path::Path;
-
-fn example(name: &str) -> Job {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("examples")
-        .join(name)
-        .join("job.toml");
-    Job::load(&path).expect("example job")
-}
-
-fn machine_text(name: &str) -> String {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("machine-profiles")
-        .join(format!("{name}.toml"));
-    std::fs::read_to_string(path).expect("machine profile")
-}
-
-fn machine(name: &str) -> MachineProfile {
-    MachineProfile::from_toml(&machine_text(name), name).expect("machine profile")
-}
 
 /// The linked moves' durations of a plan as posted, s.
 fn runs(plan: &Plan, machine: &MachineProfile) -> Vec<f64> {
