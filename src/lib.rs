@@ -81,6 +81,4 @@ pub mod post;
 pub mod program;
 pub mod protocol;
 pub mod records;
-#[cfg(test)]
-mod testing;
 pub mod transport;

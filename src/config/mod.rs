@@ -9,3 +9,5 @@
 pub mod connection;
 pub mod job;
 pub mod machine;
+#[cfg(test)]
+pub(crate) mod testing;

@@ -202,7 +202,7 @@ impl Guard for DeltaGuard {
 mod tests {
     use super::*;
     use crate::judge::simulator::machine;
-    use crate::testing::example;
+    use crate::config::testing::example;
     use whirl_sim::{Controller, ControllerOptions, MachineState};
 
     /// The ring `plan` plans `job` with.

@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::geometry::profile::points::{self, Row, Section};
-use crate::testing::{example, machine};
+use crate::config::testing::{example, machine};
 use std::f64::consts::PI;
 
 /// The double-start example (radii 26 to 34 mm, lead 60 mm) with Δ = `delta`, bypassing the

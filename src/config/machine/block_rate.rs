@@ -173,7 +173,7 @@ pub(super) fn check(profile: &MachineProfile) -> Result<(), (String, String)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::{machine, machine_text};
+    use crate::config::testing::{machine, machine_text};
 
     #[test]
     fn each_profile_gets_its_familys_rate() {

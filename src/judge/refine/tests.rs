@@ -8,7 +8,7 @@ use crate::geometry::linkage::{Linkage, Whirling};
 use crate::geometry::profile::points::{self, Row, Section};
 use crate::judge::verify::verify;
 use crate::plan::segment::{AgainstInterpolation, Estimated};
-use crate::testing::{example, machine};
+use crate::config::testing::{example, machine};
 use proptest::prelude::*;
 use std::cell::Cell;
 

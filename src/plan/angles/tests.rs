@@ -5,7 +5,7 @@
 use super::*;
 use crate::config::machine::MachineProfile;
 use crate::plan::plan;
-use crate::testing::example;
+use crate::config::testing::example;
 
 fn sim() -> MachineProfile {
     MachineProfile::builtin_sim().expect("the built-in machine profile")

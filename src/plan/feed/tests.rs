@@ -4,7 +4,7 @@
 use super::*;
 use crate::plan::segment::{Choice, Estimated, NodeError, Problem};
 use crate::program::Move;
-use crate::testing::{example, machine, machine_text};
+use crate::config::testing::{example, machine, machine_text};
 use std::f64::consts::{PI, TAU};
 
 /// The linked moves' durations of a plan as posted, s.
