@@ -1,7 +1,7 @@
 //! The fastest feed (`axial_feed = "auto"`) of every example on the simulated grblHAL machine:
-//! the search alone, every feed planned as `whirl plan` plans it (what `whirl stream` of an
-//! auto job costs), and with the engine's measure of the whole program found (what
-//! `whirl plan --fastest` does).
+//! the search alone, every feed planned with its nodes measured by the engine, and with the
+//! engine's measure of the whole program found besides (what `whirl plan --fastest`, and
+//! `whirl stream` or `whirl dry-run` of an auto job, do).
 //!
 //! Run with `cargo bench --bench fastest`; docs/benchmarks.md quotes the figures, and
 //! docs/planner.md the feeds and machine times found.

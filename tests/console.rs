@@ -163,6 +163,25 @@ fn actions_need_the_token_and_reading_does_not() {
     let planned = serve.post("/api/plan", &[("X-Whirl-Token", TOKEN)], &plan);
     assert_eq!(planned.status, 200, "{}", planned.body);
     assert!(planned.json()["segments"].as_u64().unwrap() > 0);
+    // The history lists the plan to anyone; its record, with the files it read, only
+    // with the token.
+    let history = serve.get("/api/history").json();
+    let id = history[0]["id"].as_i64().expect("the plan is recorded");
+    let record = format!("/api/history/{id}");
+    assert_eq!(serve.get(&record).status, 401);
+    let shown = request(
+        serve.addr,
+        "GET",
+        &record,
+        &[("X-Whirl-Token", TOKEN)],
+        None,
+    );
+    assert_eq!(shown.status, 200, "{}", shown.body);
+    assert!(
+        shown.json()["job_file"]["text"].is_string(),
+        "{}",
+        shown.body
+    );
     // The login form sets the cookie the page's requests then carry.
     let login = serve.post(
         "/login",

@@ -27,6 +27,7 @@ use crate::transport::{
     self, Commands, Link, Posted, Progress, ProgressFn, RunOptions, TransportKind,
 };
 use std::collections::BTreeMap;
+use std::panic::AssertUnwindSafe;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -279,7 +280,12 @@ impl Console {
         let path = self.jobs.resolve(&request.job)?;
         let bytes = std::fs::read(&path)
             .map_err(|e| StartError::Job(format!("cannot read the job {}: {e}", request.job)))?;
-        let job = Job::load(&path).map_err(|e| StartError::Job(e.to_string()))?;
+        // Planned from the bytes the record keeps, not from a second read of a file that
+        // may change in between.
+        let text = std::str::from_utf8(&bytes).map_err(|e| {
+            StartError::Job(format!("the job {} is not UTF-8 text: {e}", request.job))
+        })?;
+        let job = Job::from_toml(text, &path).map_err(|e| StartError::Job(e.to_string()))?;
         let (job, plan) = self.planned_job(&request.job, job, machine)?;
         let posted = Posted::read(request.job.as_str(), &plan.text, machine)
             .map_err(|e| StartError::Preflight(format!("{}: {e}", request.job)))?;
@@ -402,22 +408,40 @@ impl Console {
                 if let Some((store, record)) = &recorded {
                     let mut ending = Ending::new(Outcome::Failed);
                     ending.reason = Some(format!("not started: {busy}"));
-                    let _ = runtime.block_on(store.finish(*record, &ending));
+                    if let Err(e) = runtime.block_on(store.finish(*record, &ending)) {
+                        tracing::error!(record, error = %e, "the run's record could not be closed");
+                    }
                 }
                 return Err(busy.into());
             }
         };
+        // The run's record closes however its thread ends: a panic in it, or no thread at
+        // all, fails the record here rather than leave it running while this console lives
+        // (no other whirl closes it: this process is alive).
+        let runtime = Arc::new(runtime);
+        let record = recorded.clone();
+        let broke_off = {
+            let console = Arc::clone(self);
+            let runtime = Arc::clone(&runtime);
+            move |machine: &str, id: u64, why: String| {
+                if let Some((store, record)) = &record {
+                    if let Err(e) = runtime.block_on(store.finish(*record, &failed(&why))) {
+                        tracing::error!(record, error = %e, "the run's record could not be closed");
+                    }
+                }
+                console
+                    .registry
+                    .end(machine, id, |v| v.outcome = Some(format!("failed: {why}")));
+            }
+        };
         let console = Arc::clone(self);
         let name = machine.to_owned();
+        let thread_runtime = Arc::clone(&runtime);
+        let ends = broke_off.clone();
         std::thread::Builder::new()
             .name(format!("console run {id}"))
             .spawn(move || {
                 let _lock = lock;
-                let _ends = Ends {
-                    console: Arc::clone(&console),
-                    machine: name.clone(),
-                    id,
-                };
                 let run = Run {
                     machine: &name,
                     id,
@@ -425,12 +449,19 @@ impl Console {
                     resume_at,
                     start,
                 };
-                console.run(run, &runtime, recorded, commands);
+                let ran = std::panic::catch_unwind(AssertUnwindSafe(|| {
+                    console.run(run, &thread_runtime, recorded, commands)
+                }));
+                if ran.is_err() {
+                    ends(
+                        &name,
+                        id,
+                        "the console's run broke off (see its error output)".into(),
+                    );
+                }
             })
             .map_err(|error| {
-                self.registry.end(machine, id, |v| {
-                    v.outcome = Some(format!("not started: {error}"))
-                });
+                broke_off(machine, id, format!("not started: {error}"));
                 StartError::Thread(error)
             })?;
         Ok(id)
@@ -490,7 +521,9 @@ impl Console {
                     inputs.transport,
                     ResumeOptions {
                         line: line - 1,
-                        start: start.unwrap_or([0.0; 3]),
+                        start: start.unwrap_or_else(|| {
+                            dry_run::power_up(&inputs.posted.program, inputs.transport)
+                        }),
                         time_scale: inputs.time_scale,
                         baud: BAUD,
                         progress: Some(progress),
@@ -619,24 +652,6 @@ struct Run<'a> {
     start: Option<[f64; 3]>,
 }
 
-/// Ends a run whose thread panicked, so that its machine does not stay busy for ever.
-struct Ends {
-    console: Arc<Console>,
-    machine: String,
-    id: u64,
-}
-
-impl Drop for Ends {
-    fn drop(&mut self) {
-        if std::thread::panicking() {
-            self.console.registry.end(&self.machine, self.id, |v| {
-                v.outcome =
-                    Some("failed: the console's run broke off (see its error output)".into())
-            });
-        }
-    }
-}
-
 /// Reads a run's log into its view as it grows: alarms and messages in words, the resume
 /// point, and the executed moves into what the machine has cut.
 struct LogReader {
@@ -718,6 +733,11 @@ impl LogReader {
 /// over what the link carries in the simulated time so far.
 fn progress(reader: Arc<Mutex<LogReader>>, inputs: &RunInputs) -> ProgressFn {
     let serial = inputs.transport == TransportKind::Serial;
+    // The machine's line, or the dry run's emulated one.
+    let baud = match &inputs.link {
+        Some(Link::Serial { baud, .. }) => *baud,
+        _ => BAUD,
+    };
     let scale = inputs.time_scale;
     // Bytes of the first n lines, each with its newline.
     let bytes: Vec<usize> = std::iter::once(0)
@@ -731,7 +751,7 @@ fn progress(reader: Arc<Mutex<LogReader>>, inputs: &RunInputs) -> ProgressFn {
         let simulated = p.elapsed.as_secs_f64() * scale;
         let link = (serial && simulated > 0.0).then(|| {
             let sent = bytes[p.done.min(bytes.len() - 1)] as f64;
-            (sent * 10.0 / (f64::from(BAUD) * simulated)).min(1.0)
+            (sent * 10.0 / (f64::from(baud) * simulated)).min(1.0)
         });
         reader
             .console

@@ -681,6 +681,16 @@ fn clear_start(program: &crate::program::Program) -> whirl_sim::Position {
     whirl_sim::Position::from_array([x, 0.0, 0.0])
 }
 
+/// Where a dry run of `program` on `transport` powers the simulated machine up (X, Z, C):
+/// the drives' clear start on CAN, the origin for a grbl or a PLC, as the simulator's
+/// controller boots. A resume of a dry run stopped before it moved starts there.
+pub fn power_up(program: &crate::program::Program, transport: TransportKind) -> [f64; 3] {
+    match transport {
+        TransportKind::CanSlcan | TransportKind::Can => clear_start(program).to_array(),
+        _ => [0.0; 3],
+    }
+}
+
 /// Simulated seconds per wall second of a CAN dry run before the cycle runs (boot-up,
 /// configuration): real time, as the drives' and the master's timeouts are set for it.
 /// Once the cycle runs, the drives' clock is the master's SYNC and the job goes as fast
@@ -781,6 +791,11 @@ async fn over_can(
     )
     .await;
     drop(slave);
+    // The drives' last stretch, logged and judged however the stream ended: a failed run's
+    // log, too, ends where the drives stand.
+    if let Some(stretch) = merger.finish() {
+        sim.stretch(stretch);
+    }
     let resume_move = match &streamed {
         Ok(outcome) => outcome.resume_move,
         Err(DryRunError::CanStream(error)) => error.resume_move(),
@@ -788,9 +803,6 @@ async fn over_can(
     };
     let resume_at = sim.resume_at(resume_move.map(|at| Pickup::whole(posted).line_of(at)));
     let outcome = streamed?;
-    if let Some(stretch) = merger.finish() {
-        sim.stretch(stretch);
-    }
     let mut bus = bus.lock().unwrap_or_else(|p| p.into_inner());
     if outcome.completed {
         // The job's end: the guard settles the points that waited for later motion.
@@ -811,4 +823,26 @@ async fn over_can(
         link_utilization: outcome.bus_load(bitrate.bits_per_second()),
     };
     sim.report(name, measured, points, ending, bitrate.bits_per_second())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_drives_power_up_where_the_first_move_puts_x_and_a_controller_at_its_origin() {
+        let machine = MachineProfile::builtin_sim().unwrap();
+        let text = "G21\nG90\nG0 X31.5 Z2\nG1 X30 Z0 F100\nM2\n";
+        let posted = Posted::read("p", text, &machine).unwrap();
+        for can in [TransportKind::CanSlcan, TransportKind::Can] {
+            assert_eq!(power_up(&posted.program, can), [31.5, 0.0, 0.0]);
+        }
+        for other in [
+            TransportKind::Serial,
+            TransportKind::ModbusTcp,
+            TransportKind::ModbusRtu,
+        ] {
+            assert_eq!(power_up(&posted.program, other), [0.0; 3]);
+        }
+    }
 }

@@ -201,8 +201,8 @@ impl Guard for DeltaGuard {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::judge::simulator::machine;
     use crate::config::testing::example;
+    use crate::judge::simulator::machine;
     use whirl_sim::{Controller, ControllerOptions, MachineState};
 
     /// The ring `plan` plans `job` with.

@@ -829,7 +829,7 @@ impl<'a> SectionTarget<'a> {
                     self.within_length(m.at.y, Source::Line(m.line))?;
                     let z = foot.point.at.y;
                     // Turning start s by θ = z/p brings its point to polar angle
-                    // φ(u) + s·T + z/p = φ₀ − j·T + s·T: the start is −j modulo the starts.
+                    // φ(u) + s·T + z/p = φ₀ + j·T + s·T: the start is −j modulo the starts.
                     let start = (-foot.copy).rem_euclid(i64::from(self.starts)) as u32;
                     (start, z, foot.u - foot.copy as f64 * self.profile.length())
                 }

@@ -37,8 +37,9 @@ pub struct Budget {
     pub rounding: f64,
     /// Material left in concave stretches tighter than the nose but too shallow to refuse.
     pub concave: f64,
-    /// What is left for interpolation between nodes where every share peaks at once (the
-    /// largest scallop and cusp): the least of the undercut rooms.
+    /// What is left for interpolation between nodes where every share peaks at once: Δ less
+    /// the largest scallop and cusp and the blending, rounding and concave shares. The node
+    /// choice works to each sample's own rooms instead ([`crate::plan::segment::Problem::rooms`]).
     pub interpolation: f64,
 }
 

@@ -179,13 +179,9 @@ pub enum FeedError {
 pub struct Fastest {
     /// The job with that feed.
     pub job: Job,
-    /// Its plan; its report carries the feed and the bound.
+    /// Its plan; its report carries the feed and what stops a feed [`MARGIN`] higher
+    /// (`feed_bound`).
     pub plan: Plan,
-    /// What stops a feed [`MARGIN`] higher.
-    pub bound: FeedBound,
-    /// The lowest feed tried above it that is refused: within half a percent of it, unless
-    /// the margin's feed is the only one tried above.
-    pub nearest_refused: FeedBound,
 }
 
 /// What [`search`] finds: the feed, what passed there, the bound at [`MARGIN`] times it, and
@@ -264,7 +260,12 @@ pub fn evaluate(
             bound(Limit::Axes, limit.to_string())
         }
         Err(
-            e @ (PlanError::CPrecision { .. } | PlanError::Limits { .. } | PlanError::Delta { .. }),
+            e @ (PlanError::CPrecision { .. }
+            | PlanError::Limits { .. }
+            | PlanError::Delta {
+                higher_feed_lifts: true,
+                ..
+            }),
         ) => Ok(Outcome::TooSlow(e)),
         Err(e) => Err(e),
     }
@@ -283,12 +284,10 @@ pub fn fastest(
         evaluate(job, machine, feed, choice, &angle)
     })?;
     let mut plan = *found.passed;
-    plan.report.feed_bound = Some(found.bound.clone());
+    plan.report.feed_bound = Some(found.bound);
     Ok(Fastest {
         job: at(job, found.feed),
         plan,
-        bound: found.bound,
-        nearest_refused: found.nearest_refused,
     })
 }
 

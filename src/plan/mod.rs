@@ -190,6 +190,10 @@ pub enum PlanError {
         bound: f64,
         /// Which bound and why.
         why: String,
+        /// A higher feed lifts the bound: the controller's numbers hold C less finely the
+        /// farther it turns, and fewer turns take it less far. Δ against the groove's depth
+        /// or the post's decimals is the same at any feed.
+        higher_feed_lifts: bool,
     },
     /// The job gives no installation angle, and the ring fits the groove at none.
     #[error("tool.installation_angle_deg is not given, and {0}")]
@@ -565,6 +569,7 @@ fn check_delta(
             value: delta,
             bound: rho_max - rho_min,
             why,
+            higher_feed_lifts: false,
         });
     }
     let share = delta / 30.0;
@@ -587,6 +592,7 @@ fn check_delta(
                 show_figure(finest),
                 show_figure(mm_per_deg),
             ),
+            higher_feed_lifts: false,
         });
     };
     let feed = job.cut.axial_feed;
@@ -614,6 +620,7 @@ fn check_delta(
                 room * 100.0,
                 show_figure(rounding_least / room),
             ),
+            higher_feed_lifts: true,
         });
     }
     Ok((linear, angular))

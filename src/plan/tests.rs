@@ -2,8 +2,8 @@
 //! profile.
 
 use super::*;
-use crate::geometry::profile::points::{self, Row, Section};
 use crate::config::testing::{example, machine};
+use crate::geometry::profile::points::{self, Row, Section};
 use std::f64::consts::PI;
 
 /// The double-start example (radii 26 to 34 mm, lead 60 mm) with Δ = `delta`, bypassing the

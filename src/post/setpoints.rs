@@ -227,9 +227,12 @@ pub struct SampledMove {
     /// rounding up to whole cycles aside).
     pub slowed: bool,
     /// How much faster a feed override may run it: its duration over the time its fastest
-    /// axis takes at that axis's max rate, at least 1. Exactly 1 for a rapid, which a feed
-    /// override leaves alone (as grbl's does), and for the spindle's spin-up wait, a dwell.
+    /// axis takes at that axis's max rate, at least 1. Exactly 1 for a rapid and for the
+    /// spindle's spin-up wait, which keep their own time at any override.
     pub speedup: f64,
+    /// A feed move, which a feed override scales; a rapid and the spin-up wait (a dwell)
+    /// it leaves alone, slower or faster, as grbl's does.
+    pub feed: bool,
 }
 
 /// A spindle command at its place in the set-points.
@@ -346,6 +349,7 @@ pub fn sample(
                         duration: n as f64 * period,
                         slowed: false,
                         speedup: 1.0,
+                        feed: false,
                     });
                     spans.push((cycle, n));
                     cycle += n;
@@ -396,6 +400,7 @@ pub fn sample(
                 duration: n as f64 * period,
                 slowed,
                 speedup,
+                feed: !matches!(step.action, Move::Rapid { .. }),
             });
             spans.push((cycle, n));
             cycle += n;

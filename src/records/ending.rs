@@ -28,8 +28,8 @@ impl Ending {
         ending
     }
 
-    /// A dry run's ending: completed or stopped, the measured error and the simulator's
-    /// alarms. A dry run is run again, not resumed: no resume point.
+    /// A dry run's ending: completed or stopped, the measured error, the simulator's alarms,
+    /// and where a stopped one resumes (the console resumes a dry run on its simulator).
     pub fn of_dry_run(report: &DryRunReport) -> Ending {
         let mut ending = Ending::new(if report.completed {
             Outcome::Completed

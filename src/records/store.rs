@@ -442,7 +442,19 @@ impl Store {
 
     async fn close(&self, id: RunId, ending: &Ending, ended: &str) -> Result<bool, RecordError> {
         let what = "close a record";
-        let mut tx = self.pool.begin().await.map_err(self.error(what))?;
+        // Its notes are numbered after the last one written: a note written at the same
+        // moment (a hold pressed on the console) takes the number, and the close tries again.
+        for _ in 0..ID_TRIES {
+            match self.close_once(id, ending, ended).await {
+                Err(e) if taken(&e) => continue,
+                closed => return closed.map_err(self.error(what)),
+            }
+        }
+        Err(self.contended(what))
+    }
+
+    async fn close_once(&self, id: RunId, ending: &Ending, ended: &str) -> sqlx::Result<bool> {
+        let mut tx = self.pool.begin().await?;
         let updated = sqlx::query(
             "UPDATE runs SET outcome = $2, reason = $3, ended_at = $4, \
              program_name = COALESCE($5, program_name), \
@@ -464,8 +476,7 @@ impl Store {
         .bind(ending.possibly_run_to.map(line))
         .bind(ending.last_line.map(line))
         .execute(&mut *tx)
-        .await
-        .map_err(self.error(what))?;
+        .await?;
         if updated.rows_affected() == 0 {
             return Ok(false);
         }
@@ -482,8 +493,7 @@ impl Store {
             .bind(m.delta_mm)
             .bind(i64::from(m.within_delta))
             .execute(&mut *tx)
-            .await
-            .map_err(self.error(what))?;
+            .await?;
         }
         // A run that did not complete stops once, at its resume line.
         let stop = (ending.outcome != Outcome::Completed
@@ -497,8 +507,7 @@ impl Store {
                 .bind(id)
                 .fetch_one(&mut *tx)
                 .await
-                .and_then(|row| row.try_get("seq"))
-                .map_err(self.error(what))?;
+                .and_then(|row| row.try_get("seq"))?;
         for (seq, note) in (last + 1..).zip(ending.notes.iter().chain(&stop)) {
             sqlx::query(
                 "INSERT INTO run_notes (run_id, seq, at, kind, line, code, text) \
@@ -512,10 +521,9 @@ impl Store {
             .bind(note.code.map(i64::from))
             .bind(&note.text)
             .execute(&mut *tx)
-            .await
-            .map_err(self.error(what))?;
+            .await?;
         }
-        tx.commit().await.map_err(self.error(what))?;
+        tx.commit().await?;
         Ok(true)
     }
 

@@ -185,7 +185,7 @@ impl Control {
     /// why it was held if it was.
     pub fn step_feed_override(&self, by: i32) -> Result<(u16, Option<String>), FeedOverrideError> {
         let cap = self.feed_cap().ok_or(FeedOverrideError::NoCap)?;
-        let (percent, held) = cap.clamp(i32::from(self.feed_override_asked()) + by);
+        let (percent, held) = cap.clamp(i32::from(self.feed_override_asked()).saturating_add(by));
         self.feed_override(percent).map(|p| (p, held))
     }
 }
@@ -330,6 +330,9 @@ mod tests {
         assert_eq!(held, 117);
         assert!(why.unwrap().contains("insert cusp"));
         assert_eq!(commands.next_request().await, Request::FeedOverride(117));
+        // A step as large as a request can ask is held at the cap, not overflowed.
+        assert_eq!(control.step_feed_override(i32::MAX).unwrap().0, 117);
+        assert_eq!(control.step_feed_override(i32::MIN).unwrap().0, 10);
         // A run that ended refuses it.
         drop(commands);
         assert_eq!(control.feed_override(100), Err(FeedOverrideError::Ended));

@@ -20,6 +20,16 @@ pub(crate) fn plan(job: &mut Job, machine: &MachineProfile) -> Result<Option<Pla
     Ok(Some(found.plan))
 }
 
+/// `job` planned as `whirl plan` plans it: an auto job at its fastest feed (`job` resolved to
+/// it), the report naming the limit that bound it; any other at its own feed.
+pub(crate) fn planned(job: &mut Job, machine: &MachineProfile) -> Result<Plan> {
+    match plan(job, machine)? {
+        Some(plan) => Ok(plan),
+        None => whirl::judge::refine::plan(job, machine)
+            .with_context(|| format!("cannot plan {}", crate::job_name(job))),
+    }
+}
+
 /// `job` at the feed it is cut at: an auto job's fastest (as `whirl plan` finds it), or, when
 /// a program planned for it is given, the feed that program cuts at.
 pub(crate) fn resolve(job: Job, machine: &MachineProfile, program: Option<&Path>) -> Result<Job> {

@@ -282,11 +282,7 @@ fn plan(
     let mut job = Job::load(job)?;
     job.cut.auto_feed |= fastest;
     record.begin(&machine, None, None)?;
-    let plan = match fastest::plan(&mut job, &machine)? {
-        Some(plan) => plan,
-        None => whirl::judge::refine::plan(&job, &machine)
-            .with_context(|| format!("cannot plan {}", job_name(&job)))?,
-    };
+    let plan = fastest::planned(&mut job, &machine)?;
     record.planned(&plan);
     let mut verified = None;
     if verify {
@@ -353,9 +349,7 @@ fn stream(
 ) -> Result<ExitCode> {
     let name = input.display().to_string();
     let (text, cap) = if input.extension().is_some_and(|e| e == "toml") {
-        let job = fastest::resolve(Job::load(input)?, machine, None)?;
-        let plan = whirl::judge::refine::plan(&job, machine)
-            .with_context(|| format!("cannot plan {}", job_name(&job)))?;
+        let plan = fastest::planned(&mut Job::load(input)?, machine)?;
         record.planned(&plan);
         let cap = transport::control::feed_cap(&plan.report, link.kind());
         (plan.text, Some(cap))
@@ -454,18 +448,20 @@ fn dry_run(
             machine.dialect
         );
     }
-    let job = fastest::resolve(Job::load(&paths.job)?, &machine, paths.program.as_deref())?;
+    let mut job = Job::load(&paths.job)?;
     let (name, text, cap, ring) = match &paths.program {
-        Some(path) => (
-            path.display().to_string(),
-            std::fs::read_to_string(path)
-                .with_context(|| format!("cannot read {}", path.display()))?,
-            None,
-            planned_ring(&job)?,
-        ),
+        Some(path) => {
+            job = fastest::resolve(job, &machine, Some(path))?;
+            (
+                path.display().to_string(),
+                std::fs::read_to_string(path)
+                    .with_context(|| format!("cannot read {}", path.display()))?,
+                None,
+                planned_ring(&job)?,
+            )
+        }
         None => {
-            let plan = whirl::judge::refine::plan(&job, &machine)
-                .with_context(|| format!("cannot plan {}", job_name(&job)))?;
+            let plan = fastest::planned(&mut job, &machine)?;
             record.planned(&plan);
             let kind = match controller {
                 Controller::WhirlSim => options.transport,

@@ -84,7 +84,9 @@ pub(crate) fn run(args: MeasureArgs) -> Result<ExitCode> {
         .input("the program (--program)", args.program.as_deref())
         .check()?;
     let machine = crate::load_machine(args.machine.as_deref())?;
-    let job = Job::load(&args.job)?;
+    // An auto job measured at the feed it was cut at: its program's, or the fastest as
+    // `whirl plan` finds it.
+    let job = crate::fastest::resolve(Job::load(&args.job)?, &machine, args.program.as_deref())?;
     let name = args.section.display().to_string();
     let text =
         std::fs::read_to_string(&args.section).with_context(|| format!("cannot read {name}"))?;

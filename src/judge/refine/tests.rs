@@ -4,11 +4,11 @@
 use super::*;
 use crate::config::job::Hand;
 use crate::config::machine::NumberType;
+use crate::config::testing::{example, machine};
 use crate::geometry::linkage::{Linkage, Whirling};
 use crate::geometry::profile::points::{self, Row, Section};
 use crate::judge::verify::verify;
 use crate::plan::segment::{AgainstInterpolation, Estimated};
-use crate::config::testing::{example, machine};
 use proptest::prelude::*;
 use std::cell::Cell;
 

@@ -4,8 +4,8 @@
 
 use super::*;
 use crate::config::machine::MachineProfile;
-use crate::plan::plan;
 use crate::config::testing::example;
+use crate::plan::plan;
 
 fn sim() -> MachineProfile {
     MachineProfile::builtin_sim().expect("the built-in machine profile")

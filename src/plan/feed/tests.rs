@@ -2,9 +2,9 @@
 //! the chip an insert takes, what refuses a feed, and the bracket and bisection.
 
 use super::*;
+use crate::config::testing::{example, machine, machine_text};
 use crate::plan::segment::{Choice, Estimated, NodeError, Problem};
 use crate::program::Move;
-use crate::config::testing::{example, machine, machine_text};
 use std::f64::consts::{PI, TAU};
 
 /// The linked moves' durations of a plan as posted, s.
@@ -370,8 +370,62 @@ fn a_feed_at_which_the_choice_finds_no_nodes_within_delta_is_refused_by_delta() 
     let found = fastest(&auto, &sim, &choice).unwrap();
     let feed = found.job.cut.axial_feed;
     assert!(feed <= 0.2 && feed * MARGIN > 0.2, "{feed}");
-    assert_eq!(found.bound.limit, Limit::Delta);
+    assert_eq!(found.plan.report.feed_bound.unwrap().limit, Limit::Delta);
     // The program is the one the choice plans for the job at that feed.
     let given = crate::plan::plan_with(&at(&job, feed), &sim, &choice).unwrap();
     assert_eq!(given.text, found.plan.text);
+}
+
+#[test]
+fn a_delta_no_feed_can_meet_is_refused_as_it_is_and_one_a_faster_feed_lifts_is_searched() {
+    let sim = machine("sim");
+    // Finer than the post can write (6 decimals on the LinuxCNC profile): the same at any
+    // feed, so the search refuses it at once with the planner's own words.
+    let mut fine = example("double-start");
+    fine.cut.delta = 1e-6;
+    fine.cut.auto_feed = true;
+    let e = fastest(&fine, &machine("linuxcnc-lathe"), &Estimated).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            PlanError::Delta {
+                higher_feed_lifts: false,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    // Beyond the groove's depth: likewise.
+    let mut coarse = example("double-start");
+    coarse.cut.delta = 9.0;
+    coarse.cut.auto_feed = true;
+    let e = fastest(&coarse, &sim, &Estimated).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            PlanError::Delta {
+                higher_feed_lifts: false,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    // Below what the simulator's 32-bit C holds after 88 200° at 0.1 mm a turn: a faster
+    // feed turns C less far, so the job's feed is too slow, not its Δ impossible.
+    let mut slow = example("double-start");
+    slow.cut.delta = 1e-4;
+    let Outcome::TooSlow(e) = evaluate(&slow, &sim, 0.1, &Estimated, &Resolved::default()).unwrap()
+    else {
+        panic!("0.1 mm a turn at Δ = 0.1 µm is refused for C's precision");
+    };
+    assert!(
+        matches!(
+            e,
+            PlanError::Delta {
+                higher_feed_lifts: true,
+                ..
+            }
+        ),
+        "{e}"
+    );
 }

@@ -183,6 +183,8 @@ pub struct Session {
     speed: f64,
     /// The feed override, as set-points a cycle: the speed the path runs at, unheld.
     feed: f64,
+    /// The last step was on a feed move (not a rapid nor the spin-up wait).
+    on_feed: bool,
     /// A feed override asked whose speed the path has not reached yet, percent.
     feed_asked: Option<u16>,
     /// A resume whose speed the path has not reached yet.
@@ -283,6 +285,7 @@ impl Session {
             position: 0.0,
             speed: 1.0,
             feed: 1.0,
+            on_feed: false,
             feed_asked: None,
             resuming: false,
             held: false,
@@ -942,16 +945,31 @@ impl Session {
             }
         }
         // The straight move the next step is on, and how fast a feed override may run it:
-        // never so fast that an axis exceeds its max rate (a rapid not at all). Entering a
-        // move with less room, the speed drops to it at once, as at any junction.
+        // a feed move never so fast that an axis exceeds its max rate, a rapid or the
+        // spin-up wait at its own speed whatever the override. Entering a move with less
+        // room, the speed drops to it at once, as at any junction; and between a feed move
+        // and a rapid or the wait, each starts at its own speed (unless a hold or a resume
+        // ramps it), as their speeds along the path differ there anyway.
         let next = self
             .junctions
             .partition_point(|&j| j as f64 <= self.position);
-        let room = self.setpoints.moves.get(next).map_or(1.0, |m| m.speedup);
+        let (room, feed) = self
+            .setpoints
+            .moves
+            .get(next)
+            .map_or((1.0, false), |m| (m.speedup, m.feed));
+        if feed != self.on_feed && !self.held && !self.resuming && self.speed > 0.0 {
+            self.speed = if feed { self.feed.min(room) } else { 1.0 };
+        }
+        self.on_feed = feed;
         self.speed = self.speed.min(room);
         let step = self.ramp_step();
         let was = self.speed;
-        let target = if self.held { 0.0 } else { self.feed.min(room) };
+        let target = match (self.held, feed) {
+            (true, _) => 0.0,
+            (false, true) => self.feed.min(room),
+            (false, false) => 1.0,
+        };
         self.speed = if self.speed > target {
             (self.speed - step).max(target)
         } else {
