@@ -223,8 +223,15 @@ impl ExecLog {
     /// The events a memory log holds so far, in order (none for a file or a discarding
     /// log: read a file back with [`read`]).
     pub fn records(&self) -> Vec<Record> {
+        self.records_from(0)
+    }
+
+    /// The events a memory log holds from the `from`-th on (none past its end): what is new
+    /// to a reader that follows a run, copied without the rest, which a long run's reader
+    /// would otherwise copy again at every look while the run waits on the lock.
+    pub fn records_from(&self, from: usize) -> Vec<Record> {
         match &self.sink {
-            Sink::Memory(records) => lock(records).clone(),
+            Sink::Memory(records) => lock(records).get(from..).unwrap_or_default().to_vec(),
             Sink::File { .. } | Sink::Discard => Vec::new(),
         }
     }

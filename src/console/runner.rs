@@ -667,15 +667,14 @@ struct LogReader {
 impl LogReader {
     fn read_log(&mut self) {
         self.last = Instant::now();
-        let records = self.log.records();
-        let new = records.get(self.read..).unwrap_or_default();
-        self.read = records.len();
+        let new = self.log.records_from(self.read);
+        self.read += new.len();
         let mut executed = Vec::new();
         let mut words = Vec::new();
         let mut alarms = Vec::new();
         let mut resume = None;
         let mut running = None;
-        for record in new {
+        for record in &new {
             match &record.event {
                 // Not taken, the transport says why in a message beside it.
                 Event::FeedOverride {

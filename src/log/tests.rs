@@ -89,6 +89,12 @@ fn a_memory_log_keeps_every_event_in_order_for_every_clone() {
     let kept: Vec<(f64, Event)> = log.records().into_iter().map(|r| (r.t, r.event)).collect();
     assert_eq!(kept, sample());
     assert_eq!(clone.records().len(), sample().len());
+    // A reader following the run takes what is new since its last look.
+    let n = sample().len();
+    assert_eq!(clone.records_from(n - 1).len(), 1);
+    assert_eq!(clone.records_from(n - 1)[0].event, sample()[n - 1].1);
+    assert!(clone.records_from(n).is_empty());
+    assert!(clone.records_from(n + 5).is_empty());
     // Nothing is kept by the others.
     let mut discard = ExecLog::discard();
     discard.write(0.0, sample()[0].1.clone()).unwrap();

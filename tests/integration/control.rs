@@ -67,7 +67,8 @@ fn run_with(
 /// Waits until the log shows `what` (within a minute of wall time).
 fn wait_for(log: &ExecLog, what: &str, seen: impl Fn(&[Record]) -> bool) {
     let since = Instant::now();
-    while !seen(&log.records()) {
+    let mut follow = util::Follow::new(log);
+    while !seen(follow.look()) {
         assert!(
             since.elapsed() < Duration::from_secs(60),
             "waited a minute for {what}"

@@ -453,7 +453,8 @@ async fn a_stop_over_can_holds_the_path_then_disables_the_drives_gently() {
         ),
         async {
             let since = Instant::now();
-            while !started(&log.records()) {
+            let mut follow = util::Follow::new(&log);
+            while !started(follow.look()) {
                 assert!(
                     since.elapsed() < Duration::from_secs(30),
                     "the job never started"

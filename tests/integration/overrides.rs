@@ -110,8 +110,9 @@ fn run_at(
 /// Stops the run once 300 linked moves executed after the controller reported `percent`.
 fn stop_after_linked_moves(control: &Control, log: &ExecLog, percent: u16) {
     let since = Instant::now();
+    let mut follow = util::Follow::new(log);
     loop {
-        let records = log.records();
+        let records = follow.look();
         let at = records.iter().position(|r| {
             matches!(r.event, Event::FeedOverride { percent: p, state: FeedOverrideState::Running } if p == percent)
         });
@@ -133,7 +134,7 @@ fn stop_after_linked_moves(control: &Control, log: &ExecLog, percent: u16) {
                 .collect();
             panic!("waited five minutes for 300 linked moves at {percent} % ({linked} seen); the log's feed overrides: {overrides:?}");
         }
-        std::thread::sleep(Duration::from_millis(5));
+        std::thread::sleep(Duration::from_millis(20));
     }
 }
 

@@ -231,3 +231,28 @@ pub fn dry_run(
     let read = whirl::log::read(&log).expect("the log reads back");
     (o.status.code(), serde_json::from_str(&text).unwrap(), read)
 }
+
+/// A memory log read as its run writes it: each look copies only the records new since the
+/// last, so a test polling a long run does not hold the log's lock copying all of it again
+/// while the run waits to write.
+pub struct Follow {
+    log: whirl::log::ExecLog,
+    seen: Vec<whirl::log::Record>,
+}
+
+impl Follow {
+    /// Follows `log` from its start.
+    pub fn new(log: &whirl::log::ExecLog) -> Follow {
+        Follow {
+            log: log.clone(),
+            seen: Vec::new(),
+        }
+    }
+
+    /// Every record so far.
+    pub fn look(&mut self) -> &[whirl::log::Record] {
+        let new = self.log.records_from(self.seen.len());
+        self.seen.extend(new);
+        &self.seen
+    }
+}

@@ -22,15 +22,8 @@ pub const FINE_MINUS: u8 = 0x94;
 
 /// Reports after a byte in which `Ov:` must show its effect: grbl shows `Ov:` at least
 /// every 20 reports while busy (and at once after a change), so a controller that has not
-/// in 21 either does not report it or did not take the byte. Only reports answering a `?`
-/// written after the byte count ([`FeedOverride::sent`]): a controller that lags behind
-/// its link still owes the answers to the ones before, and those cannot show the byte.
+/// in 21 either does not report it or did not take the byte.
 pub const UNCONFIRMED_REPORTS: u32 = 21;
-
-/// Whether `byte` is one of the feed override's real-time bytes.
-pub fn is_feed_override(byte: u8) -> bool {
-    (RESET..=FINE_MINUS).contains(&byte)
-}
 
 /// The next byte on the way from `from` (`None`: not known) to `to`, percent; `None` once
 /// there. Unknown, or `to` nearer 100 than `from` in steps, goes through 0x90 first.
@@ -87,19 +80,8 @@ pub enum Change {
 pub struct FeedOverride {
     asked: Option<u16>,
     reported: Option<u16>,
-    /// A byte sent and not yet seen in `Ov:`.
-    in_flight: Option<InFlight>,
-}
-
-/// The byte on its way.
-#[derive(Debug, Clone, Copy)]
-struct InFlight {
-    /// The value before it.
-    from: Option<u16>,
-    /// Reports still owed to `?` written before it.
-    owed_before: u32,
-    /// Reports since, not counting those.
-    reports: u32,
+    /// A byte sent and not yet seen in `Ov:`: the value before it, and reports since.
+    in_flight: Option<(Option<u16>, u32)>,
 }
 
 impl FeedOverride {
@@ -119,14 +101,6 @@ impl FeedOverride {
         self.reported
     }
 
-    /// The byte in flight went out behind `queries_unanswered` `?` not yet answered: their
-    /// reports do not count against it.
-    pub fn sent(&mut self, queries_unanswered: u32) {
-        if let Some(byte) = &mut self.in_flight {
-            byte.owed_before = queries_unanswered;
-        }
-    }
-
     /// Takes a status report's `Ov:` feed value (`None`: the report had none): the next
     /// byte to send, and what changed.
     pub fn on_report(&mut self, ov: Option<u16>) -> (Option<u8>, Option<Change>) {
@@ -137,14 +111,11 @@ impl FeedOverride {
             }
             self.reported = Some(v);
         }
-        if let Some(byte) = &mut self.in_flight {
-            let confirmed = ov.is_some_and(|v| byte.from != Some(v));
+        if let Some((from, reports)) = self.in_flight {
+            let confirmed = ov.is_some_and(|v| from != Some(v));
             if confirmed {
                 self.in_flight = None;
-            } else if byte.owed_before > 0 {
-                byte.owed_before -= 1;
-                return (None, change);
-            } else if byte.reports + 1 >= UNCONFIRMED_REPORTS {
+            } else if reports + 1 >= UNCONFIRMED_REPORTS {
                 self.in_flight = None;
                 let asked = self.asked.take().unwrap_or(100);
                 return (
@@ -155,7 +126,7 @@ impl FeedOverride {
                     }),
                 );
             } else {
-                byte.reports += 1;
+                self.in_flight = Some((from, reports + 1));
                 return (None, change);
             }
         }
@@ -171,11 +142,7 @@ impl FeedOverride {
         let asked = self.asked?;
         match next_byte(self.reported, asked) {
             Some(byte) => {
-                self.in_flight = Some(InFlight {
-                    from: self.reported,
-                    owed_before: 0,
-                    reports: 0,
-                });
+                self.in_flight = Some((self.reported, 0));
                 Some(byte)
             }
             None => {

@@ -277,8 +277,6 @@ pub struct Streamer {
     last_wco: Option<Vec<f64>>,
     /// The feed override asked and what `Ov:` says.
     feed: FeedOverride,
-    /// `?` written and not yet answered (since the last banner: a reset drops the rest).
-    queries_unanswered: u32,
 }
 
 impl Streamer {
@@ -383,7 +381,6 @@ impl Streamer {
             last_status: None,
             last_wco: None,
             feed: FeedOverride::default(),
-            queries_unanswered: 0,
             config,
         };
         if !streamer.config.wait_for_banner {
@@ -428,13 +425,6 @@ impl Streamer {
     /// all of them, in order.
     pub fn transmit(&mut self) -> Option<Vec<u8>> {
         let mut out = std::mem::take(&mut self.realtime);
-        for &byte in &out {
-            if byte == realtime::STATUS {
-                self.queries_unanswered += 1;
-            } else if feed_override::is_feed_override(byte) {
-                self.feed.sent(self.queries_unanswered);
-            }
-        }
         while let Some(line) = self.next_outgoing() {
             let bytes = self.text(line).len() + 1;
             let budget = self.budget();
@@ -874,7 +864,6 @@ impl Streamer {
     }
 
     fn on_banner(&mut self, text: String) {
-        self.queries_unanswered = 0;
         if self.phase == Phase::AwaitBanner {
             self.events.push_back(Event::Banner(text));
             self.after_banner();
@@ -990,7 +979,6 @@ impl Streamer {
                 }
             }
         }
-        self.queries_unanswered = self.queries_unanswered.saturating_sub(1);
         let (byte, change) = self.feed.on_report(feed_override::reported(&status.other));
         self.realtime.extend(byte);
         let motion_done = self.motion_finished(&status);

@@ -134,39 +134,3 @@ fn a_byte_the_controller_does_not_take_is_not_followed_by_another() {
         })
     );
 }
-
-#[test]
-fn reports_owed_to_earlier_queries_do_not_count_and_may_still_confirm() {
-    let mut o = FeedOverride::default();
-    o.on_report(Some(100));
-    assert_eq!(o.ask(120), Some(COARSE_PLUS));
-    // Written behind three unanswered `?`: their reports are not the byte's.
-    o.sent(3);
-    for _ in 0..3 + UNCONFIRMED_REPORTS - 1 {
-        assert_eq!(o.on_report(Some(100)), (None, None));
-    }
-    assert_eq!(
-        o.on_report(Some(100)).1,
-        Some(Change::NotTaken {
-            asked: 120,
-            reported: Some(100)
-        })
-    );
-    // One of them may show it all the same (grbl takes the byte when it arrives and
-    // reports from its main loop): that confirms it.
-    assert_eq!(o.ask(120), Some(COARSE_PLUS));
-    o.sent(3);
-    assert_eq!(
-        o.on_report(Some(110)),
-        (Some(COARSE_PLUS), Some(Change::Reported(110)))
-    );
-}
-
-#[test]
-fn only_the_feed_overrides_bytes_are_feed_override_bytes() {
-    let ours: Vec<u8> = (0..=255).filter(|&b| is_feed_override(b)).collect();
-    assert_eq!(
-        ours,
-        [RESET, COARSE_PLUS, COARSE_MINUS, FINE_PLUS, FINE_MINUS]
-    );
-}
