@@ -85,8 +85,12 @@ fn run_at(
         .expect("within the cap given");
     let watched = log.clone();
     let operator = std::thread::spawn(move || stop_after_linked_moves(&control, &watched, percent));
+    // At 50× the whole program takes half a minute: time for grbl's override bytes, one a
+    // status report, to reach the value asked long before the groove ends (as fast as the
+    // host allows, the program can end first).
     let options = DryRunOptions {
         transport: TransportKind::Serial,
+        time_scale: Some(50.0),
         commands: Some(commands),
         ..DryRunOptions::default()
     };
@@ -125,6 +129,15 @@ fn stop_after_linked_moves(control: &Control, log: &ExecLog, percent: u16) {
         if linked >= 300 {
             control.stop("the test has seen enough");
             return;
+        }
+        if let Some(end) = records
+            .iter()
+            .find(|r| matches!(r.event, Event::End { .. }))
+        {
+            panic!(
+                "the run ended ({:?}) after {linked} linked moves at {percent} %",
+                end.event
+            );
         }
         if since.elapsed() > Duration::from_secs(300) {
             let overrides: Vec<_> = records
