@@ -8,26 +8,17 @@ use whirl::config::job::Job;
 use whirl::config::machine::MachineProfile;
 use whirl::plan::Plan;
 
-/// For an auto job: the fastest feed's plan, `job` resolved to that feed; `None` for a job
-/// that gives its feed (planned as it always is).
-pub(crate) fn plan(job: &mut Job, machine: &MachineProfile) -> Result<Option<Plan>> {
+/// `job` planned as `whirl plan` plans it: an auto job at its fastest feed (`job` resolved to
+/// it), the report naming the limit that bound it; any other at its own feed.
+pub(crate) fn planned(job: &mut Job, machine: &MachineProfile) -> Result<Plan> {
     if !job.cut.auto_feed {
-        return Ok(None);
+        return whirl::judge::refine::plan(job, machine)
+            .with_context(|| format!("cannot plan {}", crate::job_name(job)));
     }
     let found = whirl::judge::fastest::fastest(job, machine)
         .with_context(|| format!("cannot find the fastest feed for {}", crate::job_name(job)))?;
     *job = found.job;
-    Ok(Some(found.plan))
-}
-
-/// `job` planned as `whirl plan` plans it: an auto job at its fastest feed (`job` resolved to
-/// it), the report naming the limit that bound it; any other at its own feed.
-pub(crate) fn planned(job: &mut Job, machine: &MachineProfile) -> Result<Plan> {
-    match plan(job, machine)? {
-        Some(plan) => Ok(plan),
-        None => whirl::judge::refine::plan(job, machine)
-            .with_context(|| format!("cannot plan {}", crate::job_name(job))),
-    }
+    Ok(found.plan)
 }
 
 /// `job` at the feed it is cut at: an auto job's fastest (as `whirl plan` finds it), or, when
