@@ -159,6 +159,19 @@ pub enum LogError {
         /// Why.
         error: std::io::Error,
     },
+    /// The path is a device, a pipe or a socket. Such a "file" has no end to look for a
+    /// torn line at, and what is written to it is not kept (`/dev/full` reads as endless
+    /// zeros, a pipe's reader may be gone): it keeps no log, so it is refused before a run.
+    #[error(
+        "executed-path log {path}: it is {kind}, not a regular file; a log must be a file \
+         that keeps every run's events: name one"
+    )]
+    NotAFile {
+        /// The log.
+        path: PathBuf,
+        /// What it is instead, in words ("a character device").
+        kind: &'static str,
+    },
 }
 
 /// Where a run's events go: an append-only file, memory, or nowhere. Clones write to the
@@ -185,18 +198,27 @@ enum Sink {
 impl ExecLog {
     /// Open `path` for appending (created if missing; what is there is kept). If its last
     /// line is torn (no newline at the end: a crash or a full disk mid-write), a newline is
-    /// appended first to close it off, so this run's events start on a line of their own.
+    /// appended first to close it off, so this run's events start on a line of their own:
+    /// only the last byte is read, however long the log. A path that is not a regular file
+    /// is refused ([`LogError::NotAFile`]), looked at before it is opened (opening a named
+    /// pipe may wait for its reader) and again once open (it may have been replaced).
     pub fn append(path: &Path) -> Result<ExecLog, LogError> {
         let io = |error| LogError::Io {
             path: path.to_owned(),
             error,
         };
+        match std::fs::metadata(path) {
+            Ok(meta) => regular(path, &meta)?,
+            Err(error) if error.kind() == std::io::ErrorKind::NotFound => {}
+            Err(error) => return Err(io(error)),
+        }
         let mut file = OpenOptions::new()
             .create(true)
             .read(true)
             .append(true)
             .open(path)
             .map_err(io)?;
+        regular(path, &file.metadata().map_err(io)?)?;
         close_torn_line(&mut file).map_err(io)?;
         Ok(ExecLog {
             sink: Sink::File {
@@ -260,8 +282,37 @@ impl ExecLog {
     }
 }
 
-/// Append the newline a torn last line lacks; nothing for an empty file (or one that is not
-/// a regular file, which has no length) or one that ends with a newline. Only ever appends.
+/// `Ok` for a regular file (links followed), else [`LogError::NotAFile`] naming what it is.
+pub(crate) fn regular(path: &Path, meta: &std::fs::Metadata) -> Result<(), LogError> {
+    if meta.is_file() {
+        return Ok(());
+    }
+    Err(LogError::NotAFile {
+        path: path.to_owned(),
+        kind: special_kind(&meta.file_type()),
+    })
+}
+
+/// What a file that is not a regular file is, in the words of a refusal.
+pub fn special_kind(kind: &std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    if kind.is_dir() {
+        "a directory"
+    } else if kind.is_char_device() {
+        "a character device"
+    } else if kind.is_block_device() {
+        "a block device"
+    } else if kind.is_fifo() {
+        "a named pipe"
+    } else if kind.is_socket() {
+        "a socket"
+    } else {
+        "not a regular file"
+    }
+}
+
+/// Append the newline a torn last line lacks; nothing for an empty file or one that ends
+/// with a newline. Only ever appends.
 fn close_torn_line(file: &mut File) -> std::io::Result<()> {
     if file.metadata()?.len() == 0 {
         return Ok(());
@@ -307,13 +358,19 @@ pub struct Skipped {
 }
 
 /// Read a log. A line that is not an event (a torn write, wherever it is, or anything else)
-/// is skipped and listed in [`Read::skipped`]; only a file that cannot be read at all is an
+/// is skipped and listed in [`Read::skipped`]; only a file that cannot be read at all, or
+/// that is not a regular file ([`LogError::NotAFile`]: a device may never end), is an
 /// error. Blank lines are passed over.
 pub fn read(path: &Path) -> Result<Read, LogError> {
-    let bytes = std::fs::read(path).map_err(|error| LogError::Io {
+    let io = |error| LogError::Io {
         path: path.to_owned(),
         error,
-    })?;
+    };
+    // Looked at before it is opened: opening a named pipe waits for a writer.
+    regular(path, &std::fs::metadata(path).map_err(io)?)?;
+    let mut file = File::open(path).map_err(io)?;
+    let mut bytes = Vec::new();
+    file.read_to_end(&mut bytes).map_err(io)?;
     Ok(parse(&bytes))
 }
 

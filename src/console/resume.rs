@@ -231,6 +231,7 @@ async fn resume_modbus(
     let bank = Arc::new(Mutex::new(bank));
     let clock = ClockOptions {
         time_scale: options.time_scale,
+        max_step: Some(crate::judge::dry_run::SIM_MAX_STEP),
         ..ClockOptions::default()
     };
     let started = Instant::now();

@@ -528,9 +528,18 @@ enum ModbusKind {
 pub const MODBUS_TIME_SCALE: f64 = 100.0;
 
 /// The simulated controller's watchdog in a dry run, ms of its time: the longest the map
-/// holds (65.5 s), so that a host busy for a moment does not trip it at the dry run's time
-/// scale (a third of a second of wall time at 200×). The watchdog itself is tested apart.
+/// holds (65.5 s), so that a bridge task kept waiting behind the simulator's own work does
+/// not trip it at the dry run's time scale (a third of a second of wall time at 200×); a
+/// host that stops the whole process is not counted at all ([`SIM_MAX_STEP`]). The
+/// watchdog itself is tested apart.
 const DRY_RUN_WATCHDOG_MS: u16 = u16::MAX;
+
+/// The most wall time one step of an in-process Modbus simulator's clock counts
+/// ([`whirl_sim::modbus::serve::ClockOptions::max_step`]): ten of its 2 ms ticks. A longer
+/// gap is the host not running the process, in which the bridge did not run either; counted,
+/// it would expire the controller's watchdog at a high time scale however well the bridge
+/// feeds it, and the dry run's verdict would depend on how busy the host was.
+pub const SIM_MAX_STEP: Duration = Duration::from_millis(20);
 
 /// The dry run through the Modbus register map: the simulator's register bank in front of
 /// the same simulated controller and Δ guard, served with tokio-modbus over TCP or RTU,
@@ -564,6 +573,7 @@ async fn over_modbus(
     let scale = options.time_scale.unwrap_or(MODBUS_TIME_SCALE);
     let clock = ClockOptions {
         time_scale: scale,
+        max_step: Some(SIM_MAX_STEP),
         ..ClockOptions::default()
     };
     let mut sim = SimSide::new(log);

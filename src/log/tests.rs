@@ -421,3 +421,42 @@ fn the_summary_prints_its_totals_skipped_lines_and_runs_as_json() {
     assert_eq!(run["ended"], "completed");
     assert!(run.get("reason").is_none(), "{run:#}");
 }
+
+/// A named pipe made by `mkfifo`, in `dir`.
+fn fifo(dir: &Path) -> PathBuf {
+    let path = dir.join("pipe");
+    let made = std::process::Command::new("mkfifo").arg(&path).status();
+    assert!(made.unwrap().success(), "mkfifo");
+    path
+}
+
+#[test]
+fn a_path_that_is_not_a_regular_file_is_refused_as_a_log_naming_what_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let socket = dir.path().join("sock");
+    let _listening = std::os::unix::net::UnixListener::bind(&socket).unwrap();
+    // /dev/full and /dev/zero read as endless zeros: a reader that looked for the end of
+    // either would never stop. A named pipe's open would wait for its other end.
+    for (path, kind) in [
+        (PathBuf::from("/dev/full"), "a character device"),
+        (PathBuf::from("/dev/zero"), "a character device"),
+        (fifo(dir.path()), "a named pipe"),
+        (socket, "a socket"),
+        (dir.path().to_owned(), "a directory"),
+    ] {
+        match ExecLog::append(&path) {
+            Err(LogError::NotAFile {
+                path: named,
+                kind: said,
+            }) => {
+                assert_eq!((named, said), (path.clone(), kind));
+            }
+            other => panic!("{}: {other:?}", path.display()),
+        }
+        assert!(
+            matches!(read(&path), Err(LogError::NotAFile { kind: said, .. }) if said == kind),
+            "{}",
+            path.display()
+        );
+    }
+}

@@ -89,7 +89,11 @@ impl Misfit {
     /// the linkage's and the interference check's.
     pub(crate) fn refusal(self, hint: String) -> PlanError {
         match self {
-            Misfit::Clearance { reach, rho_max } => PlanError::Clearance { reach, rho_max },
+            Misfit::Clearance { reach, rho_max } => PlanError::Clearance {
+                reach,
+                rho_max,
+                hint,
+            },
             Misfit::Table(cause) => PlanError::Table { cause, hint },
             Misfit::Interference(cause) => PlanError::Interference { cause, hint },
         }

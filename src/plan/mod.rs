@@ -153,16 +153,18 @@ pub enum PlanError {
         /// the radius it can bend it to across the groove, mm, and how.
         rounding: Option<(f64, Rounding)>,
     },
-    /// An internal-whirling ring too small to enclose the work.
+    /// An internal-whirling ring too small to enclose the work at this installation angle.
     #[error(
         "the ring is too small to enclose the work: R·cos δ − r = {reach:.3} mm does not \
-         clear the outer radius {rho_max:.3} mm"
+         clear the outer radius {rho_max:.3} mm{hint}"
     )]
     Clearance {
         /// How far the ring reaches from its centre when tilted, R·cos δ − r, mm.
         reach: f64,
         /// The work's outer radius, mm.
         rho_max: f64,
+        /// Installation angles that would work, if any: a smaller tilt may clear the work.
+        hint: String,
     },
     /// The linkage failed somewhere on the profile.
     #[error("{cause}{hint}")]

@@ -4,7 +4,7 @@
 //! the log is only ever appended to), so one run is read out of a log that holds many,
 //! and the log is only ever read.
 
-use std::io::{Read as _, Seek, SeekFrom};
+use std::io::{BufRead, Seek, SeekFrom};
 use std::path::Path;
 
 use crate::log::{Ended, Event, FeedOverrideState, Read, Record, Summary};
@@ -40,15 +40,28 @@ pub struct LogFacts {
 /// Reads the run whose events begin at byte `offset` of the log at `path` and which
 /// started at program line `from_line` (1-based: 1, or the line it resumed at): its events
 /// up to the next run's Start (a run appended after it), lines that are not events skipped
-/// as [`crate::log::read`] skips them.
+/// as [`crate::log::read`] skips them. The log is read a line at a time and no further
+/// than that Start, so a long log of many runs costs one run's events; a path that is not
+/// a regular file (a device reads without end) is an error of kind `InvalidInput`.
 pub fn read_run(path: &Path, offset: u64, from_line: usize) -> std::io::Result<LogFacts> {
+    // Looked at before it is opened: opening a named pipe waits for a writer.
+    if let Err(refused) = crate::log::regular(path, &std::fs::metadata(path)?) {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            refused.to_string(),
+        ));
+    }
     let mut file = std::fs::File::open(path)?;
     file.seek(SeekFrom::Start(offset))?;
-    let mut bytes = Vec::new();
-    file.read_to_end(&mut bytes)?;
+    let mut reader = std::io::BufReader::new(file);
     let mut records: Vec<Record> = Vec::new();
-    for line in bytes.split(|&b| b == b'\n') {
-        let Ok(record) = serde_json::from_slice::<Record>(line) else {
+    let mut line = Vec::new();
+    loop {
+        line.clear();
+        if reader.read_until(b'\n', &mut line)? == 0 {
+            break;
+        }
+        let Ok(record) = serde_json::from_slice::<Record>(line.trim_ascii_end()) else {
             continue;
         };
         if matches!(record.event, Event::Start { .. }) && !records.is_empty() {
@@ -175,6 +188,14 @@ mod tests {
             log.write(1.0, e).unwrap();
         }
         (path, offset)
+    }
+
+    #[test]
+    fn a_log_that_is_a_device_is_not_read() {
+        // /dev/zero has no end: reading it for a run's events would never stop.
+        let error = read_run(Path::new("/dev/zero"), 0, 1).unwrap_err();
+        assert_eq!(error.kind(), std::io::ErrorKind::InvalidInput);
+        assert!(error.to_string().contains("a character device"), "{error}");
     }
 
     #[test]

@@ -209,6 +209,24 @@ pub enum RecordError {
         /// What the store was doing.
         what: &'static str,
     },
+    /// SQLite's quick check found the file damaged (a disk fault, a copy taken mid-write):
+    /// refused before anything is read from or written to it, so that nothing recorded in
+    /// it is lost to a write over a broken page.
+    #[error(
+        "the run records at {place} are damaged (SQLite's quick check: {problem}); nothing \
+         was read from or written to them. Keep the file: move it aside (mv {file} \
+         {file}.damaged) and whirl starts a new one there; sqlite3's .recover reads what the \
+         old one still holds (sqlite3 {file}.damaged .recover | sqlite3 {file}.recovered)",
+        file = .path.display()
+    )]
+    Damaged {
+        /// The database.
+        place: String,
+        /// Its file.
+        path: PathBuf,
+        /// What the check found first.
+        problem: String,
+    },
     /// A query failed.
     #[error("the run records at {place}: cannot {what}: {error}")]
     Query {
@@ -219,6 +237,40 @@ pub enum RecordError {
         /// Why.
         error: sqlx::Error,
     },
+}
+
+/// SQLite's `PRAGMA quick_check`: the file's pages and their b-trees are whole (the
+/// indexes' agreement with their tables, which only the full integrity check compares, is
+/// left out: it costs a sort of every index). A page damaged in the middle of the file
+/// opens without complaint and fails only when a query reaches it: checked here, at open,
+/// before the run it would record starts.
+async fn quick_check(pool: &AnyPool, place: &str, path: &Path) -> Result<(), RecordError> {
+    let damaged = |problem: String| RecordError::Damaged {
+        place: place.to_owned(),
+        path: path.to_owned(),
+        problem,
+    };
+    let rows = match sqlx::query("PRAGMA quick_check").fetch_all(pool).await {
+        Ok(rows) => rows,
+        // SQLite's own word for a file that is not a database at all is left to the opening
+        // error it has always been; anything the check itself trips over is damage.
+        Err(sqlx::Error::Database(error)) if error.message().contains("not a database") => {
+            return Err(RecordError::Open {
+                place: place.to_owned(),
+                error: sqlx::Error::Database(error),
+            })
+        }
+        Err(error) => return Err(damaged(error.to_string())),
+    };
+    let found: Vec<String> = rows
+        .iter()
+        .filter_map(|row| row.try_get::<String, _>(0).ok())
+        .collect();
+    match found.first() {
+        Some(first) if first == "ok" => Ok(()),
+        Some(first) => Err(damaged(first.clone())),
+        None => Err(damaged("no answer".into())),
+    }
 }
 
 /// The records' schema, version by version.
@@ -294,6 +346,9 @@ impl Store {
             .connect_with(options)
             .await
             .map_err(open)?;
+        if let Place::Sqlite { options, .. } = place {
+            quick_check(&pool, &name, options.get_filename()).await?;
+        }
         // Two whirls opening a new SQLite file at once may both try the first migration
         // (SQLite has no lock for the migrator to take); the one that loses finds it done
         // when it looks again.

@@ -133,6 +133,27 @@ fn on_the_trapezoidal_example_the_window_is_the_refusals_and_the_pick_lies_insid
         p.window,
         plan.stderr
     );
+    // Tilted so far that the ring cannot enclose the work (cos 89° ≈ 0.017), the refusal
+    // names the same window.
+    let tilted_job = trapezoidal(dir.path(), "installation_angle_deg = 89\n", |t| t);
+    let plan = whirl(&[
+        os("plan"),
+        tilted_job.as_os_str(),
+        os("-o"),
+        out.as_os_str(),
+    ]);
+    assert!(!plan.ok && !out.exists());
+    assert!(
+        plan.stderr
+            .contains("the ring is too small to enclose the work")
+            && plan.stderr.contains(&format!(
+                "installation angles that work with this ring: {} ",
+                p.window
+            )),
+        "{}\n{}",
+        p.window,
+        plan.stderr
+    );
     // The rows run from edge to edge, where the margin is zero; the one marked has the
     // largest margin, the middle to the 0.001° the edges are found to.
     assert_eq!(p.rows.first().map(|r| (r.deg, r.margin)), Some((low, 0.0)));

@@ -168,3 +168,60 @@ fn the_summary_says_which_run_executed_a_line_twice_and_which_run_was_interrupte
     );
     assert_eq!(s["completed"], Value::Null, "the last run has no End");
 }
+
+/// `whirl ARGS…` under a 1.5 GB address-space limit (`ulimit -v`), as the fault matrix ran
+/// it: a whirl that read an endless "log" would fail to allocate (and abort on a signal)
+/// rather than take the host's memory.
+fn whirl_capped(args: &[&OsStr]) -> std::process::Output {
+    std::process::Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -v 1500000 && exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_whirl"))
+        .args(args)
+        .env("WHIRL_DB", util::records_db())
+        .output()
+        .expect("sh runs")
+}
+
+#[test]
+fn a_log_that_is_a_device_or_a_pipe_is_refused_before_anything_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let pipe = dir.path().join("pipe");
+    assert!(std::process::Command::new("mkfifo")
+        .arg(&pipe)
+        .status()
+        .unwrap()
+        .success());
+    let job = util::example("double-start");
+    let program = util::write(dir.path(), "p.nc", "G21 G90 G94\nG0 X1 Z0 C0\nM2\n");
+    // No port is there: a stream that got past its log would fail on the port instead.
+    let port = dir.path().join("no-port");
+    for (log, kind) in [
+        (Path::new("/dev/full"), "a character device"),
+        (Path::new("/dev/zero"), "a character device"),
+        (pipe.as_path(), "a named pipe"),
+    ] {
+        let runs = [
+            vec![OsStr::new("dry-run"), job.as_os_str()],
+            vec![
+                OsStr::new("stream"),
+                program.as_os_str(),
+                OsStr::new("--port"),
+                port.as_os_str(),
+            ],
+        ];
+        for mut args in runs {
+            args.extend([OsStr::new("--log"), log.as_os_str()]);
+            let o = whirl_capped(&args);
+            let stderr = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(1), "{args:?}: {stderr}");
+            assert!(
+                stderr.contains(&format!("{} (the log (--log))", log.display()))
+                    && stderr.contains(&format!("it is {kind}, not a regular file")),
+                "{args:?}: {stderr}"
+            );
+            assert!(!stderr.contains("no-port"), "{args:?}: {stderr}");
+        }
+    }
+    assert!(!port.exists());
+}

@@ -270,6 +270,7 @@ async fn served<T, F: Future<Output = T>>(
     let proxied = front.local_addr().unwrap();
     let clock = ClockOptions {
         time_scale: MODBUS_TIME_SCALE,
+        max_step: Some(whirl::judge::dry_run::SIM_MAX_STEP),
         ..ClockOptions::default()
     };
     let (mut events, mut wire) = (Vec::new(), Vec::new());

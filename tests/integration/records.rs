@@ -677,6 +677,64 @@ fn a_database_that_cannot_be_opened_is_said_naming_it() {
     assert_eq!(std::fs::read_to_string(&not_db).unwrap(), "shopping list\n");
 }
 
+#[test]
+fn a_sqlite_file_damaged_in_its_middle_is_refused_when_opened_and_kept_as_it_was() {
+    let dir = tempfile::tempdir().unwrap();
+    let home = dir.path();
+    let file = dir.path().join("runs.sqlite");
+    let db = file.display().to_string();
+    // Records enough to fill pages beyond the first (each plan keeps its job and machine
+    // texts and its report).
+    for example in util::examples() {
+        let program = dir.path().join("p.nc");
+        let o = whirl_in(
+            &db,
+            home,
+            &[
+                OsStr::new("plan"),
+                example.as_os_str(),
+                OsStr::new("-o"),
+                program.as_os_str(),
+            ],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    // The middle pages overwritten, the first (the header and the schema) left whole: the
+    // file opens as a database, and its damage shows only where a query reads.
+    let mut bytes = std::fs::read(&file).unwrap();
+    let page = 4096;
+    let pages = bytes.len() / page;
+    assert!(pages >= 4, "{pages} pages");
+    for byte in &mut bytes[page * (pages / 3)..page * (2 * pages / 3)] {
+        *byte = 0xA5;
+    }
+    std::fs::write(&file, &bytes).unwrap();
+    let program = dir.path().join("q.nc");
+    let job = util::example("trapezoidal");
+    for args in [
+        vec![OsStr::new("runs"), OsStr::new("list")],
+        vec![
+            OsStr::new("plan"),
+            job.as_os_str(),
+            OsStr::new("-o"),
+            program.as_os_str(),
+        ],
+    ] {
+        let o = whirl_in(&db, home, &args);
+        let error = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {error}");
+        assert!(
+            error.contains(&format!("the run records at {db} are damaged"))
+                && error.contains(&format!("mv {db} {db}.damaged"))
+                && error.contains(".recover"),
+            "{args:?}: {error}"
+        );
+        assert!(!program.exists(), "{args:?}: a program was written");
+    }
+    // Nothing recorded was lost: the file is as the damage left it.
+    assert_eq!(std::fs::read(&file).unwrap(), bytes);
+}
+
 // ---------------------------------------------------------------------------------------
 // The command line.
 

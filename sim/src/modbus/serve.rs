@@ -31,6 +31,13 @@ pub struct ClockOptions {
     pub tick: Duration,
     /// Stop serving (Ok) after this much wall time without a request; `None`: never.
     pub idle_exit: Option<Duration>,
+    /// The most wall time one clock step counts; `None`: all of it. For a bank served in
+    /// the same process as its client (a dry run): when the host does not run the process
+    /// for a while, neither the client nor the controller ran, and the controller must not
+    /// count that time against the client (its watchdog would trip at a high time scale
+    /// because the host was busy). A bank in a process of its own counts every wall second:
+    /// its client may really have stopped.
+    pub max_step: Option<Duration>,
 }
 
 impl Default for ClockOptions {
@@ -39,6 +46,7 @@ impl Default for ClockOptions {
             time_scale: 1.0,
             tick: Duration::from_millis(2),
             idle_exit: None,
+            max_step: None,
         }
     }
 }
@@ -149,7 +157,10 @@ async fn run_clock(
             }
         }
         let now = tokio::time::Instant::now();
-        let dt = (now - last).as_secs_f64() * clock.time_scale;
+        let wall = clock
+            .max_step
+            .map_or(now - last, |most| (now - last).min(most));
+        let dt = wall.as_secs_f64() * clock.time_scale;
         last = now;
         let events = {
             let mut bank = lock(&bank);
@@ -205,4 +216,45 @@ pub async fn serve_rtu(
 /// accepting. The simulator has no logger, so the failure goes to stderr.
 fn report_connection_end(error: &io::Error) {
     eprintln!("whirl-sim: Modbus connection ended: {error}");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::modbus::BankOptions;
+    use crate::{Controller, ControllerOptions};
+
+    /// The simulated seconds a bank's clock counts, at 100×, over 3 ms of running, a
+    /// second in which the process is not run (the clock not polled), then 1 ms more:
+    /// tokio's paused time, so the host's speed plays no part.
+    async fn counted_over_a_pause(max_step: Option<Duration>) -> f64 {
+        let machine = crate::machine::test_machines::sim_default();
+        let controller = Controller::new(&machine, ControllerOptions::default()).unwrap();
+        let bank = Arc::new(Mutex::new(
+            Bank::new(controller, BankOptions::default()).unwrap(),
+        ));
+        let clock = ClockOptions {
+            time_scale: 100.0,
+            max_step,
+            ..ClockOptions::default()
+        };
+        let clocked = run_clock(Front::new(&bank), clock, |_| {});
+        tokio::pin!(clocked);
+        let ms = Duration::from_millis(1);
+        assert!(tokio::time::timeout(3 * ms, &mut clocked).await.is_err());
+        tokio::time::advance(Duration::from_secs(1)).await;
+        assert!(tokio::time::timeout(ms, &mut clocked).await.is_err());
+        let now = lock(&bank).controller().now();
+        now
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_pause_of_the_process_counts_at_most_max_step_of_wall_time() {
+        // Capped: 4 ms of running and one step of at most 20 ms, at 100×.
+        let capped = counted_over_a_pause(Some(Duration::from_millis(20))).await;
+        assert!(capped <= (0.004 + 0.020) * 100.0 + 1e-9, "{capped}");
+        // Uncapped, the whole second counts: 100 simulated seconds.
+        let whole = counted_over_a_pause(None).await;
+        assert!(whole >= 100.0, "{whole}");
+    }
 }

@@ -28,8 +28,9 @@ use std::ffi::{OsStr, OsString};
 use std::fs;
 use std::io::Write;
 use std::os::unix::ffi::OsStrExt;
-use std::os::unix::fs::{FileTypeExt, MetadataExt};
+use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
+use whirl::log::special_kind;
 
 /// The files of one command: the outputs it replaces and the files it reads (or appends
 /// to), each with the words that name it in a refusal.
@@ -146,8 +147,20 @@ impl Files {
                 }
             }
         }
-        // A log grows by every event: it may be none of the files the run reads.
+        // A log grows by every event: it may be none of the files the run reads, and it is
+        // a regular file (a device or a pipe keeps nothing, and may never end when read).
         for log in self.inputs.iter().filter(|i| i.appended) {
+            if let Ok(meta) = fs::metadata(&log.path) {
+                if !meta.is_file() {
+                    anyhow::bail!(
+                        "refusing to append to {} ({}): it is {}, not a regular file; a log \
+                         keeps every run's events in a file: name one",
+                        log.path.display(),
+                        log.what,
+                        special_kind(&meta.file_type())
+                    );
+                }
+            }
             for input in &self.inputs {
                 if !std::ptr::eq(log, input) && same_file(&log.path, &input.path) {
                     anyhow::bail!(
@@ -263,21 +276,6 @@ fn kind_refusal(path: &Path, kind: &fs::FileType) -> Option<String> {
         "it is {what}, and an output is a regular file renamed into place, which would \
          replace it"
     ))
-}
-
-/// What a file that is neither a regular file, a directory nor a link is.
-fn special_kind(kind: &fs::FileType) -> &'static str {
-    if kind.is_char_device() {
-        "a character device"
-    } else if kind.is_block_device() {
-        "a block device"
-    } else if kind.is_fifo() {
-        "a named pipe"
-    } else if kind.is_socket() {
-        "a socket"
-    } else {
-        "not a regular file"
-    }
 }
 
 /// The folder `path` is in ("." for a bare name).
