@@ -159,7 +159,7 @@ async fn resume_serial(
     outcome
 }
 
-/// Logs where a fieldbus run that did not complete resumes, as
+/// Logs where a CANopen run that did not complete resumes, as
 /// [`crate::transport::stream`] logs it beside the run's end.
 fn log_resume(log: &mut ExecLog, started: Instant, result: &Result<Outcome, ResumeError>) {
     let resume = match result {
@@ -244,6 +244,7 @@ async fn resume_modbus(
     let stream_options = ModbusOptions {
         clock_scale: options.time_scale,
         segment_moves: crate::post::modbus::segment_moves(&pickup.program),
+        lines: Some(pickup.lines.clone()),
         program: posted.name.clone(),
         on_progress: options.progress,
         commands: Some(commands),
@@ -280,15 +281,13 @@ async fn resume_modbus(
         )
     };
     let streamed = async {
-        let mut outcome = stream_modbus(&link, segments, stream_options, log)
+        let outcome = stream_modbus(&link, segments, stream_options, log)
             .await
             .map_err(|error| pickup.interrupted(error.resume_move(), error))?;
-        outcome.resume_line = outcome.resume_move.map(|at| pickup.line_of(at));
         Ok::<_, StreamError>(Outcome::Modbus(outcome))
     };
     let result = until_streamed(served, streamed).await;
     drop(slave);
-    log_resume(log, started, &result);
     result
 }
 

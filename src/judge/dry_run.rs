@@ -580,6 +580,7 @@ async fn over_modbus(
     let stream_options = ModbusOptions {
         clock_scale: scale,
         segment_moves: segment_moves(program),
+        lines: Some(moves.lines.clone()),
         program: name.to_owned(),
         on_progress: options.progress,
         commands: options.commands,
@@ -625,7 +626,8 @@ async fn over_modbus(
         Err(DryRunError::ModbusStream(error)) => error.resume_move(),
         Err(_) => None,
     };
-    let resume_at = sim.resume_at(resume_move.map(|at| moves.line_of(at)));
+    // The transport logged it before its End.
+    let resume_at = resume_move.map(|at| moves.line_of(at) + 1);
     let outcome = streamed?;
     let bank = bank.lock().unwrap_or_else(|p| p.into_inner());
     if let Some(alarm) = outcome.alarm {

@@ -25,7 +25,7 @@
 //! once the controller was reached carries it too ([`ModbusError::Interrupted`]).
 
 use super::control::{Command, Commands};
-use super::progress::{Progress, ProgressFn, Unit};
+use super::progress::{MoveLines, Progress, ProgressFn, Unit};
 use crate::log::{self, ExecLog, LogError};
 use crate::post::modbus::Segment;
 use crate::protocol::modbus::map::{reg, UNIT_ID};
@@ -97,6 +97,11 @@ pub struct ModbusOptions {
     /// [`ModbusOutcome::resume_move`] names a move; empty, the segments are the program and
     /// it counts segments.
     pub segment_moves: Vec<usize>,
+    /// The program line of each move, so that a run that does not complete fills in
+    /// [`ModbusOutcome::resume_line`] and logs it ([`log::Event::ResumeAt`]) just before its
+    /// End, as the serial transport does; `None`: the caller knows no lines, and neither is
+    /// done.
+    pub lines: Option<MoveLines>,
     /// What is streamed, for the log.
     pub program: String,
     /// The controller's unit id (slave address); the map's is 1.
@@ -119,6 +124,7 @@ impl std::fmt::Debug for ModbusOptions {
             .field("clock_scale", &self.clock_scale)
             .field("stall_timeout", &self.stall_timeout)
             .field("segment_moves", &self.segment_moves.len())
+            .field("lines", &self.lines.is_some())
             .field("program", &self.program)
             .field("unit", &self.unit)
             .field("commands", &self.commands.is_some())
@@ -138,6 +144,7 @@ impl Default for ModbusOptions {
             clock_scale: 1.0,
             stall_timeout: None,
             segment_moves: Vec::new(),
+            lines: None,
             program: String::new(),
             unit: UNIT_ID,
             commands: None,
@@ -168,8 +175,8 @@ pub struct ModbusOutcome {
     /// [`ModbusOptions::segment_moves`]) of the move of the first segment the controller
     /// did not report executed (`EXECUTED_SEQ`); `None` when completed.
     pub resume_move: Option<usize>,
-    /// The program line (0-based) of `resume_move`, where [`crate::transport::stream`],
-    /// which knows the program's lines, filled it in.
+    /// The program line (0-based) of `resume_move`, where the caller gave the moves' lines
+    /// ([`ModbusOptions::lines`]).
     pub resume_line: Option<usize>,
     /// Calls that got no answer in time.
     pub timeouts: u32,
@@ -333,12 +340,24 @@ pub async fn stream_modbus(
         (Ok(()), Some(error)) => (false, Some(error.to_string())),
         (Ok(()), None) => (run.outcome.completed, run.outcome.reason()),
     };
+    // A run that never reached the controller has nothing to resume.
+    if !completed && (connected || result.is_ok()) {
+        run.outcome.resume_move = Some(resume);
+        run.outcome.resume_line = options.lines.as_ref().map(|lines| lines.line_of(resume));
+        if let Some(line) = run.outcome.resume_line {
+            // Best effort, as the End: what ended the run is what the caller hears.
+            let _ = run.log.log.write(
+                t,
+                log::Event::ResumeAt {
+                    line: line + 1,
+                    possibly_run_to: None,
+                },
+            );
+        }
+    }
     // After a failed write the End may not land either; the failure is what the caller
     // hears.
     let ended = run.log.log.write(t, log::Event::End { completed, reason });
-    if !completed {
-        run.outcome.resume_move = Some(resume);
-    }
     let error = match (result, failed) {
         (Err(error), _) => Some(error),
         (Ok(()), Some(error)) => Some(ModbusError::Log(error)),

@@ -63,3 +63,27 @@ impl Progress {
 
 /// A progress callback. It runs on the streaming task: keep it quick.
 pub type ProgressFn = Box<dyn FnMut(&Progress) + Send>;
+
+/// The program line each move of a fieldbus run is, so that the run can say the line a move
+/// it stopped at resumes from: a Modbus segment or a CANopen set-point knows its move, and
+/// only the posted program knows the move's line.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct MoveLines {
+    /// The program line (0-based) of each move, in the order the run has them.
+    lines: Vec<usize>,
+    /// One past the program's last line: where a run that ran every move would resume.
+    end: usize,
+}
+
+impl MoveLines {
+    /// `lines`, the line (0-based) of each move; `end`, the program's line count.
+    pub fn new(lines: Vec<usize>, end: usize) -> MoveLines {
+        MoveLines { lines, end }
+    }
+
+    /// The program line (0-based) of move `index`; past the last move, the line after the
+    /// program's last.
+    pub fn line_of(&self, index: usize) -> usize {
+        self.lines.get(index).copied().unwrap_or(self.end)
+    }
+}

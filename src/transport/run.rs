@@ -14,7 +14,7 @@ use super::control::Commands;
 use super::link::Link;
 use super::linuxcnc::{run_linuxcnc, LinuxcncError, LinuxcncOptions, LinuxcncOutcome};
 use super::modbus::{stream_modbus, ModbusError, ModbusOptions, ModbusOutcome};
-use super::progress::ProgressFn;
+use super::progress::{MoveLines, ProgressFn};
 use super::serial::{stream_port, SerialError, StreamOptions, StreamOutcome};
 use crate::config::connection::SettingError;
 use crate::config::machine::MachineProfile;
@@ -320,10 +320,8 @@ pub(crate) struct Pickup {
     pub(crate) program: Program,
     /// How many of [`Pickup::program`]'s first moves are the approach.
     approach: usize,
-    /// The program line (0-based) of each move; the approach's is the resume line's.
-    lines: Vec<usize>,
-    /// One past the program's last line: where a run that ran every move would resume.
-    end: usize,
+    /// The program line of each move; the approach's is the resume line's.
+    pub(crate) lines: MoveLines,
 }
 
 impl Pickup {
@@ -352,8 +350,7 @@ impl Pickup {
         Pickup {
             program,
             approach: approach_len,
-            lines,
-            end: posted.lines.len(),
+            lines: MoveLines::new(lines, posted.lines.len()),
         }
     }
 
@@ -365,7 +362,7 @@ impl Pickup {
 
     /// The program line of move `index` of [`Pickup::program`].
     pub(crate) fn line_of(&self, index: usize) -> usize {
-        self.lines.get(index).copied().unwrap_or(self.end)
+        self.lines.line_of(index)
     }
 
     /// A transport's `error`, with where to resume if it failed mid-run at `resume_move`.
@@ -446,6 +443,7 @@ pub async fn stream(
                     },
                     stall_timeout: options.stall_timeout,
                     segment_moves: segment_moves(&moves.program),
+                    lines: Some(moves.lines.clone()),
                     program: name,
                     unit: *unit,
                     timeout: *timeout,
@@ -454,10 +452,9 @@ pub async fn stream(
                     ..ModbusOptions::default()
                 };
                 let segments = segments(&moves.program)?;
-                let mut outcome = stream_modbus(link, segments, options, log)
+                let outcome = stream_modbus(link, segments, options, log)
                     .await
                     .map_err(|error| moves.interrupted(error.resume_move(), error))?;
-                outcome.resume_line = outcome.resume_move.map(|at| moves.line_of(at));
                 Outcome::Modbus(outcome)
             }
             Link::Can { link, drives } => {
@@ -496,9 +493,9 @@ pub async fn stream(
         })
     }
     .await;
-    // The serial transport logs where to resume before its End; the fieldbus ones know
-    // moves, not lines, so the resume line they end at is logged here, beside it.
-    if matches!(link, Link::Modbus { .. } | Link::Can { .. }) {
+    // The serial and Modbus transports log where to resume before their End; the CANopen
+    // one knows moves, not lines, so the resume line it ends at is logged here, beside it.
+    if matches!(link, Link::Can { .. }) {
         let resume = match &result {
             Ok(outcome) => outcome.resume(),
             Err(error) => error.resume(),

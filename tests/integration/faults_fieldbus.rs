@@ -338,15 +338,20 @@ async fn a_stop_over_modbus_holds_the_controller_and_the_next_run_starts_from_he
     let resume = o.resume_move.expect("a resume point");
     assert_eq!(resume, moves[last as usize]);
     assert!(resume > 0 && resume < first.program.moves.len());
-    // The run ends with its End and, beside it, the program line to resume at.
+    // The run ends with the program line to resume at, then its End, in the serial
+    // transport's order: the line is the resume move's (1-based).
     let records = log.records();
     let n = records.len();
     assert!(
-        matches!(&records[n - 2].event, Event::End { completed: false, reason: Some(r) } if r.contains("the test's stop")),
+        matches!(records[n - 2].event, Event::ResumeAt { line, .. } if line == first.move_lines[resume]),
         "{:?}",
         &records[n - 2..]
     );
-    assert!(matches!(records[n - 1].event, Event::ResumeAt { .. }));
+    assert!(
+        matches!(&records[n - 1].event, Event::End { completed: false, reason: Some(r) } if r.contains("the test's stop")),
+        "{:?}",
+        &records[n - 2..]
+    );
     // The next run re-enters along the path on the held controller: its ring flushed, it
     // runs to the end.
     let resumed = posted(
