@@ -191,6 +191,7 @@ impl Outcome {
                 o.lines_total,
                 o.wall_time.as_secs_f64(),
                 o.link_utilization
+                    .filter(|_| !link.is_pseudo_terminal())
                     .map_or(String::new(), |u| format!(", link {:.0} % busy", 100.0 * u))
             ),
             Outcome::Modbus(o) => format!(

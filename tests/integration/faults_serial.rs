@@ -442,15 +442,14 @@ fn a_simulator_that_dies_mid_stream_ends_the_run_with_a_resume_point() {
 }
 
 #[test]
-fn the_link_use_figure_never_passes_the_whole_link() {
-    // A simulator as fast as the host allows takes bytes faster than the 115 200 baud the
-    // port is opened at: the ratio of bytes to that rate would pass 1 and means nothing.
+fn no_link_use_figure_is_given_for_a_pseudo_terminal() {
+    // A simulator on a pseudo-terminal takes bytes at the speed of memory, whatever the
+    // 115 200 baud the port is opened at: a share of that rate (83 % from a 1× simulator,
+    // above 100 % from a fast one) would measure nothing of a link.
     let bench = Bench::new();
     let o = finish(bench.stream(&[]));
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    if let Some(at) = stdout.find("link ") {
-        let share: f64 = stdout[at + 5..].split(' ').next().unwrap().parse().unwrap();
-        assert!(share <= 100.0, "{stdout}");
-    }
+    assert!(stdout.contains("lines acknowledged"), "{stdout}");
+    assert!(!stdout.contains("% busy"), "{stdout}");
 }
