@@ -444,12 +444,34 @@ fn a_simulator_that_dies_mid_stream_ends_the_run_with_a_resume_point() {
 #[test]
 fn no_link_use_figure_is_given_for_a_pseudo_terminal() {
     // A simulator on a pseudo-terminal takes bytes at the speed of memory, whatever the
-    // 115 200 baud the port is opened at: a share of that rate (83 % from a 1× simulator,
-    // above 100 % from a fast one) would measure nothing of a link.
-    let bench = Bench::new();
-    let o = finish(bench.stream(&[]));
+    // 115 200 baud the port is opened at: a share of that rate (83 % seen from a 1×
+    // simulator, above 100 % from a fast one) would measure nothing of a link. Here 20
+    // moves of 0.5 mm at 600 mm/min take a second of motion at 1×, in which the lines'
+    // bytes would fill a few per cent of a real 115 200-baud line.
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("grbl");
+    let _sim = Sim::serving(
+        OsStr::new("--pty"),
+        &link,
+        &[OsStr::new("--time-scale"), OsStr::new("1")],
+    );
+    let mut text = String::from("G21 G90 G94\nG0 X10 Z0 C0\n");
+    for k in 1..=20 {
+        text.push_str(&format!("G1 Z{:.1} F600\n", f64::from(k) * 0.5));
+    }
+    text.push_str("M2\n");
+    let program = util::write(dir.path(), "p.nc", &text);
+    let log = dir.path().join("exec.jsonl");
+    let o = util::whirl(&[
+        OsStr::new("stream"),
+        program.as_os_str(),
+        OsStr::new("--port"),
+        link.as_os_str(),
+        OsStr::new("--log"),
+        log.as_os_str(),
+    ]);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(stdout.contains("lines acknowledged"), "{stdout}");
+    assert!(stdout.contains("23 of 23 lines acknowledged"), "{stdout}");
     assert!(!stdout.contains("% busy"), "{stdout}");
 }
