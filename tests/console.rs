@@ -38,6 +38,8 @@ struct Serve {
     addr: SocketAddr,
     /// The folder of its locks (and anything else the test writes).
     dir: tempfile::TempDir,
+    /// The page key its own page's actions carry (from `/api/session`).
+    key: String,
 }
 
 impl Serve {
@@ -74,7 +76,14 @@ impl Serve {
             .and_then(|rest| rest.split('/').next())
             .and_then(|a| a.parse().ok())
             .unwrap_or_else(|| panic!("whirl serve said no address: {line:?}"));
-        Serve { child, addr, dir }
+        let session = request(addr, "GET", "/api/session", &[], None).json();
+        let key = session["page_key"].as_str().unwrap().to_owned();
+        Serve {
+            child,
+            addr,
+            dir,
+            key,
+        }
     }
 
     fn get(&self, path: &str) -> Answer {
@@ -85,8 +94,11 @@ impl Serve {
         request(self.addr, "GET", path, headers, None)
     }
 
+    /// A POST as the console's own page sends it: with the page key.
     fn post(&self, path: &str, headers: &[(&str, &str)], body: &str) -> Answer {
-        request(self.addr, "POST", path, headers, Some(body))
+        let mut headers = headers.to_vec();
+        headers.push(("X-Whirl-Page", &self.key));
+        request(self.addr, "POST", path, &headers, Some(body))
     }
 
     fn url(&self) -> String {
@@ -173,14 +185,20 @@ fn actions_need_the_token_and_reading_does_not() {
     assert_eq!(serve.get("/api/history/1").status, 401);
     let with_token = serve.get_with("/api/history/1", &[("X-Whirl-Token", TOKEN)]);
     assert_eq!(with_token.status, 404, "{}", with_token.body);
-    // The login form sets the cookie the page's requests then carry.
+    // The login form (with the page key its page carries) opens a session, whose random id
+    // the cookie holds: never the token itself.
     let login = serve.post(
         "/login",
         &[("Content-Type", "application/x-www-form-urlencoded")],
-        &format!("token={TOKEN}"),
+        &format!("token={TOKEN}&page={}", serve.key),
     );
     let cookie = login.header("set-cookie").expect("a cookie").to_owned();
     assert!(cookie.contains("HttpOnly") && cookie.contains("SameSite=Strict"));
+    assert!(!cookie.contains(TOKEN), "{cookie}");
+    assert!(
+        cookie.starts_with(&format!("whirl_session_{}=", serve.addr.port())),
+        "{cookie}"
+    );
     let pair = cookie.split(';').next().unwrap();
     assert_eq!(
         serve.post("/api/plan", &[("Cookie", pair)], &plan).status,
@@ -189,7 +207,7 @@ fn actions_need_the_token_and_reading_does_not() {
     let bad = serve.post(
         "/login",
         &[("Content-Type", "application/x-www-form-urlencoded")],
-        "token=guess",
+        &format!("token=guess&page={}", serve.key),
     );
     assert_eq!(bad.status, 401);
     assert!(bad.header("set-cookie").is_none());

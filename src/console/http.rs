@@ -1,25 +1,32 @@
 //! The console's HTTP edge: the page, its JSON API and the server-sent events, on axum.
 //!
-//! Reading is open to whoever reaches the console; every action (plan, verify, run, hold,
-//! resume, stop, the feed override) needs the token when the console has one, in the `X-Whirl-Token` header
-//! or the cookie the login form sets (`SameSite=Strict`, `HttpOnly`). Actions take JSON
-//! only, which a page of another site cannot post without the browser asking first.
+//! Every request is first put through the [`Gate`] ([`super::gate`] says why each rule is
+//! there): the `Host` must name the console, and a request that acts (anything but `GET`)
+//! must come from the console's own page (its `Origin`, and the page key in the
+//! [`PAGE_HEADER`]). Reading is then open to whoever reaches the console; every action (plan,
+//! verify, run, hold, resume, stop, the feed override) needs the token when the console has
+//! one, in the `X-Whirl-Token` header or through the session the login form opens
+//! ([`super::login`]). Every answer forbids framing and sniffing. Every refusal is said on
+//! the console's standard error with the client's address.
 
+use super::gate::{Gate, Refusal, PAGE_HEADER};
+use super::login::{Guesses, Sessions};
 use super::registry::{FeedAsk, FeedError, RunView};
 use super::runner::{Console, RunRequest, StartError};
-use super::token;
+use super::token::{self, Token};
 use crate::records::NoteKind;
 use crate::transport::control::FeedOverrideError;
 use crate::transport::Command;
-use axum::extract::{Path, Query, State};
-use axum::http::{header, HeaderMap, StatusCode};
+use axum::extract::{ConnectInfo, Path, Query, State};
+use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{Html, IntoResponse, Redirect, Response};
 use axum::routing::{get, post};
-use axum::{Form, Json, Router};
+use axum::{Extension, Form, Json, Router};
 use std::convert::Infallible;
-use std::sync::Arc;
-use std::time::Duration;
+use std::net::SocketAddr;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 /// The page: HTML, style and script, embedded in the binary.
 const INDEX: &str = include_str!("page/index.html");
@@ -31,8 +38,38 @@ const LOGIN: &str = include_str!("page/login.html");
 /// than a page needs to redraw.
 const EVENT_GAP: Duration = Duration::from_millis(150);
 
+/// What the HTTP edge keeps beside the console: its gate, the token, and the login's
+/// sessions and wrong guesses.
+#[derive(Debug)]
+pub struct Edge {
+    gate: Gate,
+    token: Option<Token>,
+    /// The session cookie's name, which carries the console's port.
+    cookie: String,
+    sessions: Mutex<Sessions>,
+    guesses: Mutex<Guesses>,
+}
+
+impl Edge {
+    /// The edge of a console on `port` with `gate` and `token`.
+    pub fn new(gate: Gate, token: Option<Token>, port: u16) -> Edge {
+        Edge {
+            gate,
+            token,
+            cookie: token::cookie_name(port),
+            sessions: Mutex::default(),
+            guesses: Mutex::new(Guesses::new(Instant::now())),
+        }
+    }
+}
+
+/// Who sent a request, for the console's log and the notes of what they pressed: the
+/// client's address and, if it logged in, the first digits of its session.
+#[derive(Debug, Clone)]
+struct Client(String);
+
 /// The console's routes.
-pub fn router(console: Arc<Console>) -> Router {
+pub fn router(console: Arc<Console>, edge: Arc<Edge>) -> Router {
     Router::new()
         .route("/", get(|| async { Html(INDEX) }))
         .route(
@@ -43,7 +80,7 @@ pub fn router(console: Arc<Console>) -> Router {
             "/app.js",
             get(|| async { ([(header::CONTENT_TYPE, "text/javascript")], SCRIPT) }),
         )
-        .route("/login", get(|| async { Html(LOGIN) }).post(login))
+        .route("/login", get(login_page).post(login))
         .route("/api/session", get(session))
         .route("/api/machines", get(machines))
         .route("/api/jobs", get(jobs))
@@ -57,30 +94,114 @@ pub fn router(console: Arc<Console>) -> Router {
         .route("/api/history/{id}", get(super::history::show))
         .route("/api/events", get(events))
         .layer(axum::middleware::from_fn_with_state(
-            Arc::clone(&console),
+            Arc::clone(&edge),
             guard,
         ))
+        .layer(Extension(edge))
         .with_state(console)
 }
 
-/// Every action of the API (anything but a read) needs the token, checked before the
-/// request is read any further; so does one run's record, which holds the job and machine
-/// files it ran (a command-line run's job may lie outside `--jobs`, and a shop's database
-/// holds every machine's).
+/// Every request through the gate, then every action of the API (anything but a read)
+/// needs the token, checked before the request is read any further; so does one run's
+/// record, which holds the job and machine files it ran (a command-line run's job may lie
+/// outside `--jobs`, and a shop's database holds every machine's). Every answer carries
+/// the headers that keep the page out of other sites' frames.
 async fn guard(
-    State(console): State<Arc<Console>>,
-    request: axum::extract::Request,
+    State(edge): State<Arc<Edge>>,
+    mut request: axum::extract::Request,
     next: axum::middleware::Next,
 ) -> Response {
-    let path = request.uri().path();
-    let action = request.method() != axum::http::Method::GET && path.starts_with("/api/");
-    let files = path.starts_with("/api/history/");
-    if action || files {
-        if let Err(refused) = authorised(&console, request.headers()) {
-            return refused.into_response();
+    let client = client(&edge, &request);
+    let checked = checked(&edge, &request);
+    let mut response = match checked {
+        Ok(()) => {
+            request.extensions_mut().insert(client);
+            next.run(request).await
         }
+        Err(refused) => {
+            tracing::warn!(
+                "refused {} {} from {}: {}",
+                request.method(),
+                request.uri().path(),
+                client.0,
+                refused.1
+            );
+            refused.into_response()
+        }
+    };
+    let headers = response.headers_mut();
+    for (name, value) in SAFETY_HEADERS {
+        headers.insert(name, HeaderValue::from_static(value));
     }
-    next.run(request).await
+    response
+}
+
+/// What every answer says of where it may be shown: in no frame (clickjacking: another
+/// site framing the console under a decoy to catch the operator's click on Stop), its
+/// scripts and styles only its own, its type as sent, no referrer to other sites.
+const SAFETY_HEADERS: [(header::HeaderName, &str); 5] = [
+    (header::X_FRAME_OPTIONS, "DENY"),
+    (
+        header::CONTENT_SECURITY_POLICY,
+        "default-src 'self'; img-src 'self' data:; style-src 'self' 'unsafe-inline'; \
+         frame-ancestors 'none'; form-action 'self'; base-uri 'none'",
+    ),
+    (header::X_CONTENT_TYPE_OPTIONS, "nosniff"),
+    (header::REFERRER_POLICY, "no-referrer"),
+    (
+        header::HeaderName::from_static("cross-origin-resource-policy"),
+        "same-origin",
+    ),
+];
+
+/// The gate's rules and the token, for one request.
+fn checked(edge: &Edge, request: &axum::extract::Request) -> Result<(), ApiError> {
+    let headers = request.headers();
+    let value = |name: &str| headers.get(name).and_then(|v| v.to_str().ok());
+    let refused = |r: Refusal| ApiError(StatusCode::FORBIDDEN, r.to_string());
+    edge.gate
+        .allows_host(value(header::HOST.as_str()))
+        .map_err(refused)?;
+    let path = request.uri().path();
+    let acts = !matches!(*request.method(), Method::GET | Method::HEAD);
+    let (origin, site) = (value(header::ORIGIN.as_str()), value("sec-fetch-site"));
+    if acts && path == "/login" {
+        // The login form cannot set a header: it carries the page key in a field, which
+        // the handler checks.
+        edge.gate.allows_origin(origin, site).map_err(refused)?;
+    } else if acts {
+        edge.gate
+            .allows_action(origin, site, value(PAGE_HEADER))
+            .map_err(refused)?;
+    }
+    if (acts && path.starts_with("/api/")) || path.starts_with("/api/history/") {
+        authorised(edge, headers)?;
+    }
+    Ok(())
+}
+
+/// The request's client in words: its address, and its session's first digits.
+fn client(edge: &Edge, request: &axum::extract::Request) -> Client {
+    let address = request
+        .extensions()
+        .get::<ConnectInfo<SocketAddr>>()
+        .map_or("an unknown address".to_owned(), |c| c.0.to_string());
+    let cookies = request
+        .headers()
+        .get(header::COOKIE)
+        .and_then(|v| v.to_str().ok());
+    Client(match token::cookie(cookies, &edge.cookie) {
+        Some(id) if lock(&edge.sessions).holds(id) => {
+            format!("{address} (session {})", &id[..id.len().min(8)])
+        }
+        _ => address,
+    })
+}
+
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
 /// An error as the API answers it: a status and `{"error": "…"}`.
@@ -106,18 +227,18 @@ impl From<StartError> for ApiError {
     }
 }
 
-/// Refuses a request without the console's token, when it has one.
-fn authorised(console: &Console, headers: &HeaderMap) -> Result<(), ApiError> {
-    let Some(expected) = &console.token else {
+/// Refuses a request without the console's token, when it has one: the token in a header,
+/// or a session the login opened.
+fn authorised(edge: &Edge, headers: &HeaderMap) -> Result<(), ApiError> {
+    let Some(expected) = &edge.token else {
         return Ok(());
     };
     let value = |name| headers.get(name).and_then(|v| v.to_str().ok());
-    let given = token::presented(
-        value(token::HEADER),
-        value(header::AUTHORIZATION.as_str()),
-        value(header::COOKIE.as_str()),
-    );
-    if given.is_some_and(|g| expected.matches(g)) {
+    let given = token::presented(value(token::HEADER), value(header::AUTHORIZATION.as_str()));
+    let session = token::cookie(value(header::COOKIE.as_str()), &edge.cookie);
+    if given.is_some_and(|g| expected.matches(g))
+        || session.is_some_and(|id| lock(&edge.sessions).holds(id))
+    {
         Ok(())
     } else {
         Err(ApiError(
@@ -127,43 +248,86 @@ fn authorised(console: &Console, headers: &HeaderMap) -> Result<(), ApiError> {
     }
 }
 
+/// The login page, with the page key its form posts back.
+async fn login_page(Extension(edge): Extension<Arc<Edge>>) -> Html<String> {
+    Html(login_html(&edge, ""))
+}
+
+fn login_html(edge: &Edge, said: &str) -> String {
+    LOGIN
+        .replace("<!--wrong-->", said)
+        .replace("{{page_key}}", edge.gate.key())
+}
+
 #[derive(serde::Deserialize)]
 struct LoginForm {
     token: String,
+    /// The page key the login page carries.
+    #[serde(default)]
+    page: String,
 }
 
-/// The login form: the token, if right, as a cookie for the page's requests.
-async fn login(State(console): State<Arc<Console>>, Form(form): Form<LoginForm>) -> Response {
-    match &console.token {
-        Some(expected) if expected.matches(&form.token) => (
-            [(
-                header::SET_COOKIE,
-                format!(
-                    "{}={}; Path=/; HttpOnly; SameSite=Strict",
-                    token::COOKIE,
-                    expected.as_str()
-                ),
-            )],
-            Redirect::to("/"),
-        )
-            .into_response(),
-        Some(_) => (
-            StatusCode::UNAUTHORIZED,
-            Html(LOGIN.replace("<!--wrong-->", "<p class=\"alarm\">Wrong token.</p>")),
-        )
-            .into_response(),
-        None => Redirect::to("/").into_response(),
+/// The login form: the token, if right, opens a session whose random id the cookie holds.
+/// Wrong tokens are limited ([`Guesses`]) and each is said on standard error.
+async fn login(
+    Extension(edge): Extension<Arc<Edge>>,
+    Extension(client): Extension<Client>,
+    Form(form): Form<LoginForm>,
+) -> Response {
+    let Some(expected) = &edge.token else {
+        return Redirect::to("/").into_response();
+    };
+    if !super::gate::same(&form.page, edge.gate.key()) {
+        tracing::warn!("refused a login from {}: {}", client.0, Refusal::NoPageKey);
+        return ApiError(StatusCode::FORBIDDEN, Refusal::NoPageKey.to_string()).into_response();
     }
+    let now = Instant::now();
+    if let Err(wait) = lock(&edge.guesses).allow(now) {
+        tracing::warn!("refused a login from {}: too many wrong tokens", client.0);
+        let said = format!(
+            "<p class=\"alarm\">Too many wrong tokens: try again in {} s.</p>",
+            wait.as_secs() + 1
+        );
+        return (
+            StatusCode::TOO_MANY_REQUESTS,
+            Html(login_html(&edge, &said)),
+        )
+            .into_response();
+    }
+    if !expected.matches(&form.token) {
+        lock(&edge.guesses).wrong(now);
+        tracing::warn!("a wrong access token from {}", client.0);
+        let said = "<p class=\"alarm\">Wrong token.</p>";
+        return (StatusCode::UNAUTHORIZED, Html(login_html(&edge, said))).into_response();
+    }
+    let id = match super::gate::random_key() {
+        Ok(id) => id,
+        Err(e) => {
+            return ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()).into_response()
+        }
+    };
+    lock(&edge.sessions).open(id.clone());
+    (
+        [(
+            header::SET_COOKIE,
+            format!("{}={id}; Path=/; HttpOnly; SameSite=Strict", edge.cookie),
+        )],
+        Redirect::to("/"),
+    )
+        .into_response()
 }
 
-/// Whether this page may act: no token needed, or it presented the right one.
+/// Whether this page may act (no token needed, or it presented the right one or its
+/// session), and the page key its actions carry: only a page of the console's own origin
+/// can read this answer.
 async fn session(
-    State(console): State<Arc<Console>>,
+    Extension(edge): Extension<Arc<Edge>>,
     headers: HeaderMap,
 ) -> Json<serde_json::Value> {
     Json(serde_json::json!({
-        "token_required": console.token.is_some(),
-        "authorised": authorised(&console, &headers).is_ok(),
+        "token_required": edge.token.is_some(),
+        "authorised": authorised(&edge, &headers).is_ok(),
+        "page_key": edge.gate.key(),
     }))
 }
 
@@ -224,6 +388,7 @@ async fn start(
 /// Hold, resume, stop, or resume a stopped run where it stopped (`resume-at`).
 async fn press(
     State(console): State<Arc<Console>>,
+    Extension(client): Extension<Client>,
     Path((machine, button)): Path<(String, String)>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
     let command = match button.as_str() {
@@ -253,7 +418,7 @@ async fn press(
         _ => None,
     };
     if let Some(kind) = noted {
-        if let Err(error) = console.note_pressed(&machine, kind).await {
+        if let Err(error) = console.note_pressed(&machine, kind, &client.0).await {
             if let Some(view) = console
                 .registry
                 .views()

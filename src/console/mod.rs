@@ -6,7 +6,9 @@
 //! ([`groove`]). What decides is plain code, testable without a browser or a socket:
 //!
 //! - [`paths`]: the job files it may read, only under `--jobs`;
+//! - [`gate`]: the hosts it answers to, and how an action proves it comes from its own page;
 //! - [`token`]: when an access token is required, and its constant-time check;
+//! - [`login`]: the sessions the login opens, and how fast wrong tokens may be tried;
 //! - [`lock`]: one run per machine or port, across processes (`whirl stream` takes the same
 //!   lock);
 //! - [`registry`]: the runs, one slot per machine, which live in the server, not the page;
@@ -19,10 +21,12 @@
 //! [`http`] is the edge: axum routes, the page (embedded, no build step, nothing fetched
 //! from the internet) and the server-sent events that push every change to it.
 
+pub mod gate;
 pub mod groove;
 pub mod history;
 pub mod http;
 pub mod lock;
+pub mod login;
 pub mod paths;
 pub mod record;
 pub mod registry;

@@ -70,17 +70,17 @@ pub async fn begin(place: &Place, run: &NewRun) -> Result<(Store, RunId), Record
     Ok((store, id))
 }
 
-/// A hold or a resume pressed at `line`, as its record notes it.
-pub fn pressed(kind: NoteKind, line: Option<usize>) -> Note {
+/// A hold or a resume pressed at `line` by `client` (its address and session, as
+/// [`crate::console::http`] tells them), as its record notes it: an operator's hold and
+/// anyone else's are told apart.
+pub fn pressed(kind: NoteKind, line: Option<usize>, client: &str) -> Note {
+    let what = match kind {
+        NoteKind::Hold => "held",
+        _ => "resumed",
+    };
     Note {
         line,
-        ..Note::new(
-            kind,
-            match kind {
-                NoteKind::Hold => "held from the console",
-                _ => "resumed from the console",
-            },
-        )
+        ..Note::new(kind, format!("{what} from the console by {client}"))
     }
 }
 

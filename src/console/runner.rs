@@ -13,7 +13,6 @@ use super::paths::{JobDir, PathError};
 use super::record::{self, Records};
 use super::registry::{Inputs, Registry, ResumePoint, RunError, RunView};
 use super::resume::{self, ResumeError, ResumeOptions};
-use super::token::Token;
 use crate::config::job::Job;
 use crate::config::machine::MachineProfile;
 use crate::geometry::linkage::Ring;
@@ -42,14 +41,12 @@ const LOG_READ_EVERY: Duration = Duration::from_millis(250);
 /// (to watch a cut closely) to as fast as a dry run of hours should go in a minute.
 pub const TIME_SCALES: (f64, f64) = (0.1, 1000.0);
 
-/// One `whirl serve`: its machines, its jobs folder, its token and its runs.
+/// One `whirl serve`: its machines, its jobs folder and its runs.
 pub struct Console {
     /// The machines, by profile name.
     pub machines: BTreeMap<String, MachineProfile>,
     /// Where the jobs are.
     pub jobs: JobDir,
-    /// Required of every action when set.
-    pub token: Option<Token>,
     /// The runs.
     pub registry: Registry,
     /// Where the runs are recorded; `None`: unrecorded (`--allow-unrecorded`).
@@ -176,15 +173,10 @@ fn transport(name: &str) -> Result<TransportKind, StartError> {
 impl Console {
     /// A console of `machines` and the jobs in `jobs`, locking machines in
     /// [`lock::lock_dir`].
-    pub fn new(
-        machines: BTreeMap<String, MachineProfile>,
-        jobs: JobDir,
-        token: Option<Token>,
-    ) -> Console {
+    pub fn new(machines: BTreeMap<String, MachineProfile>, jobs: JobDir) -> Console {
         Console {
             machines,
             jobs,
-            token,
             registry: Registry::default(),
             records: None,
             machine_files: BTreeMap::new(),
@@ -607,7 +599,12 @@ impl Console {
 
     /// Notes a hold or a resume pressed on `machine`'s run in its record; the error, if the
     /// records could not take it (the run goes on: a machine never stops for an index).
-    pub async fn note_pressed(&self, machine: &str, kind: NoteKind) -> Result<(), String> {
+    pub async fn note_pressed(
+        &self,
+        machine: &str,
+        kind: NoteKind,
+        client: &str,
+    ) -> Result<(), String> {
         let Some(records) = &self.records else {
             return Ok(());
         };
@@ -624,7 +621,7 @@ impl Console {
         };
         records
             .store
-            .note(id, &record::pressed(kind, view.line))
+            .note(id, &record::pressed(kind, view.line, client))
             .await
             .map_err(|e| e.to_string())
     }
@@ -789,7 +786,6 @@ mod tests {
         let mut console = Console::new(
             super::super::machines(vec![sim]).unwrap(),
             JobDir::open(&jobs).unwrap(),
-            None,
         );
         console.lock_dir = dir.join("locks");
         Arc::new(console)

@@ -3,19 +3,21 @@
 //! On loopback the console serves whoever is at the machine's own keyboard; on any other
 //! address it is on the shop's network, and [`check_listen`] refuses to start it without a
 //! token. With a token, every request that moves the machine, plans or writes carries it
-//! (a header, or the cookie the login form sets), and [`Token::matches`] compares it in
-//! time that does not depend on where the first wrong character is.
+//! (a header, or the session the login form opened: [`super::login`]), and
+//! [`Token::matches`] compares it in time that does not depend on where the first wrong
+//! character is.
 
 use std::net::SocketAddr;
 
 /// The header a request may carry the token in.
 pub const HEADER: &str = "x-whirl-token";
 
-/// The cookie the login form sets.
-pub const COOKIE: &str = "whirl_token";
-
 /// The fewest characters a token has: guessing it online is hopeless.
 pub const MIN_LEN: usize = 16;
+
+/// The fewest different characters a token has: sixteen of one letter, or two letters
+/// repeated, is guessed before anything random.
+pub const MIN_DISTINCT: usize = 8;
 
 /// An access token.
 #[derive(Clone)]
@@ -33,6 +35,13 @@ pub enum TokenError {
     /// Too short.
     #[error("the access token (--token) has {0} characters: give at least {MIN_LEN}")]
     Short(usize),
+    /// Too few different characters.
+    #[error(
+        "the access token (--token) has only {0} different characters: give at least \
+         {MIN_DISTINCT} (a random one, such as 32 hexadecimal digits from `openssl rand -hex \
+         16`)"
+    )]
+    Weak(usize),
     /// A character a cookie or a header cannot carry as it is.
     #[error(
         "the access token (--token) has a {0:?}: use letters, digits and punctuation other \
@@ -60,23 +69,20 @@ impl Token {
         if text.len() < MIN_LEN {
             return Err(TokenError::Short(text.len()));
         }
+        let distinct = text
+            .bytes()
+            .collect::<std::collections::BTreeSet<u8>>()
+            .len();
+        if distinct < MIN_DISTINCT {
+            return Err(TokenError::Weak(distinct));
+        }
         Ok(Token(text.to_owned()))
-    }
-
-    /// The token itself (for the login cookie).
-    pub fn as_str(&self) -> &str {
-        &self.0
     }
 
     /// Whether `given` is the token, compared over the token's whole length whatever
     /// `given` is.
     pub fn matches(&self, given: &str) -> bool {
-        let (expected, given) = (self.0.as_bytes(), given.as_bytes());
-        let mut difference = u8::from(expected.len() != given.len());
-        for (i, &byte) in expected.iter().enumerate() {
-            difference |= byte ^ given.get(i).copied().unwrap_or(0);
-        }
-        std::hint::black_box(difference) == 0
+        super::gate::same(given, &self.0)
     }
 }
 
@@ -89,21 +95,23 @@ pub fn check_listen(addr: SocketAddr, token: Option<&Token>) -> Result<(), Token
     }
 }
 
-/// The token a request carries: the [`HEADER`], else `Authorization: Bearer`, else the
-/// [`COOKIE`] among `cookies` (a `Cookie` header's value).
-pub fn presented<'a>(
-    header: Option<&'a str>,
-    authorization: Option<&'a str>,
-    cookies: Option<&'a str>,
-) -> Option<&'a str> {
-    header
-        .or_else(|| authorization.and_then(|a| a.strip_prefix("Bearer ")))
-        .or_else(|| {
-            cookies?.split(';').find_map(|c| {
-                let (name, value) = c.trim().split_once('=')?;
-                (name == COOKIE).then_some(value)
-            })
-        })
+/// The token a request carries: the [`HEADER`], else `Authorization: Bearer`.
+pub fn presented<'a>(header: Option<&'a str>, authorization: Option<&'a str>) -> Option<&'a str> {
+    header.or_else(|| authorization.and_then(|a| a.strip_prefix("Bearer ")))
+}
+
+/// The name of the session cookie of the console on `port`: the host's cookies are shared
+/// by all its ports, and two consoles' sessions must not overwrite each other.
+pub fn cookie_name(port: u16) -> String {
+    format!("whirl_session_{port}")
+}
+
+/// The value of the cookie `name` among `cookies` (a `Cookie` header's value).
+pub fn cookie<'a>(cookies: Option<&'a str>, name: &str) -> Option<&'a str> {
+    cookies?.split(';').find_map(|c| {
+        let (n, value) = c.trim().split_once('=')?;
+        (n == name).then_some(value)
+    })
 }
 
 #[cfg(test)]
@@ -132,6 +140,15 @@ mod tests {
     fn weak_or_unsendable_tokens_are_refused() {
         assert_eq!(Token::new("short").unwrap_err(), TokenError::Short(5));
         assert_eq!(
+            Token::new("aaaaaaaaaaaaaaaa").unwrap_err(),
+            TokenError::Weak(1)
+        );
+        assert_eq!(
+            Token::new("abcabcabcabcabcabc").unwrap_err(),
+            TokenError::Weak(3)
+        );
+        assert!(Token::new("3f9c0a17be52d846").is_ok());
+        assert_eq!(
             Token::new("with a space in it ok").unwrap_err(),
             TokenError::Character(' ')
         );
@@ -155,15 +172,19 @@ mod tests {
     }
 
     #[test]
-    fn a_request_presents_the_token_by_header_bearer_or_cookie() {
-        assert_eq!(presented(Some("a"), Some("Bearer b"), None), Some("a"));
-        assert_eq!(presented(None, Some("Bearer b"), None), Some("b"));
-        assert_eq!(presented(None, Some("Basic b"), None), None);
+    fn a_request_presents_the_token_by_header_or_bearer_and_a_session_by_its_cookie() {
+        assert_eq!(presented(Some("a"), Some("Bearer b")), Some("a"));
+        assert_eq!(presented(None, Some("Bearer b")), Some("b"));
+        assert_eq!(presented(None, Some("Basic b")), None);
+        assert_eq!(presented(None, None), None);
+        let name = cookie_name(8480);
+        assert_eq!(name, "whirl_session_8480");
         assert_eq!(
-            presented(None, None, Some("theme=dark; whirl_token=c; x=y")),
+            cookie(Some("theme=dark; whirl_session_8480=c; x=y"), &name),
             Some("c")
         );
-        assert_eq!(presented(None, None, Some("whirl_tokenx=c")), None);
-        assert_eq!(presented(None, None, None), None);
+        // Another console's session on another port is not this one's.
+        assert_eq!(cookie(Some("whirl_session_8481=c"), &name), None);
+        assert_eq!(cookie(None, &name), None);
     }
 }

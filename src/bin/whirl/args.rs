@@ -177,6 +177,11 @@ pub(crate) enum Command {
         /// for an address other hosts reach.
         #[arg(long)]
         token: Option<String>,
+        /// Another host name the console answers to (repeat for more), such as the
+        /// machine's name on the shop's network; it always answers to its listening
+        /// address, localhost, 127.0.0.1 and [::1], and to no other name (DNS rebinding).
+        #[arg(long = "allow-host", value_name = "NAME")]
+        allow_hosts: Vec<String>,
     },
     /// Read executed-path logs.
     Log {

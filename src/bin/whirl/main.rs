@@ -39,6 +39,7 @@ fn main() -> ExitCode {
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
         )
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     let cli = Cli::parse();
     let mut record = runs::Recorder::new(&cli);
@@ -175,11 +176,15 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             jobs,
             listen,
             token,
+            allow_hosts,
         } => serve::run(
             &machines,
             &jobs,
-            listen,
-            token.as_deref(),
+            serve::Listen {
+                address: listen,
+                token: token.as_deref(),
+                hosts: &allow_hosts,
+            },
             cli.db.as_deref(),
             cli.allow_unrecorded,
         ),

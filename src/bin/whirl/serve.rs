@@ -13,11 +13,13 @@ use std::sync::Arc;
 use std::time::Duration;
 use tokio::signal::unix::{signal, SignalKind};
 use whirl::config::machine::MachineProfile;
+use whirl::console::gate::Gate;
+use whirl::console::http::{self, Edge};
 use whirl::console::paths::JobDir;
 use whirl::console::record::Records;
 use whirl::console::registry::Phase;
 use whirl::console::token::{check_listen, Token};
-use whirl::console::{http, machines, Console};
+use whirl::console::{machines, Console};
 use whirl::records::{FileSnapshot, Place, Process, Store};
 use whirl::transport::Command;
 
@@ -32,19 +34,25 @@ const BUILTIN_SIM: (&str, &str) = (
     include_str!("../../../machine-profiles/sim.toml"),
 );
 
+/// Where and to whom the console listens: `--listen`, `--token`, `--allow-host`.
+pub(crate) struct Listen<'a> {
+    pub(crate) address: SocketAddr,
+    pub(crate) token: Option<&'a str>,
+    pub(crate) hosts: &'a [String],
+}
+
 /// The console of `profiles` (the built-in simulator's if none) and the jobs under
 /// `jobs`, on `listen`, recording its runs in `db` (`--db`; else `WHIRL_DB` or the
 /// default).
 pub(crate) fn run(
     profiles: &[PathBuf],
     jobs: &std::path::Path,
-    listen: SocketAddr,
-    token: Option<&str>,
+    listen: Listen<'_>,
     db: Option<&str>,
     allow_unrecorded: bool,
 ) -> Result<ExitCode> {
-    let token = token.map(Token::new).transpose()?;
-    check_listen(listen, token.as_ref())?;
+    let token = listen.token.map(Token::new).transpose()?;
+    check_listen(listen.address, token.as_ref())?;
     let mut files = Vec::new();
     let profiles = if profiles.is_empty() {
         let sim = MachineProfile::builtin_sim()?;
@@ -64,7 +72,7 @@ pub(crate) fn run(
     let machines = machines(profiles).map_err(anyhow::Error::msg)?;
     let jobs = JobDir::open(jobs)
         .with_context(|| format!("the jobs folder (--jobs) {}", jobs.display()))?;
-    let mut console = Console::new(machines, jobs, token);
+    let mut console = Console::new(machines, jobs);
     console.machine_files = machine_files;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -72,10 +80,13 @@ pub(crate) fn run(
     runtime.block_on(async move {
         console.records = records(db, allow_unrecorded).await?;
         let console = Arc::new(console);
-        let listener = tokio::net::TcpListener::bind(listen)
+        let listener = tokio::net::TcpListener::bind(listen.address)
             .await
-            .with_context(|| format!("cannot listen on {listen} (--listen)"))?;
+            .with_context(|| format!("cannot listen on {} (--listen)", listen.address))?;
         let address = listener.local_addr()?;
+        let gate = Gate::with_random_key(address, listen.hosts)
+            .context("no randomness for the console's page key")?;
+        let edge = Arc::new(Edge::new(gate, token, address.port()));
         say!("whirl serve: the console is at http://{address}/ (Ctrl-C ends it)")?;
         let mut interrupt = signal(SignalKind::interrupt())?;
         let mut terminate = signal(SignalKind::terminate())?;
@@ -85,10 +96,14 @@ pub(crate) fn run(
                 _ = terminate.recv() => {},
             }
         };
-        axum::serve(listener, http::router(Arc::clone(&console)))
-            .with_graceful_shutdown(shutdown)
-            .await
-            .context("the console's server")?;
+        let app = http::router(Arc::clone(&console), edge);
+        axum::serve(
+            listener,
+            app.into_make_service_with_connect_info::<SocketAddr>(),
+        )
+        .with_graceful_shutdown(shutdown)
+        .await
+        .context("the console's server")?;
         stop_runs(&console).await;
         Ok(ExitCode::SUCCESS)
     })

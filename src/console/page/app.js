@@ -19,10 +19,14 @@ function show() {
 }
 window.addEventListener("hashchange", show);
 
+// The console's page key (from /api/session): every action carries it, which only a page
+// of the console's own origin can read, so no other site's page can press a button.
+let pageKey = "";
+
 async function api(path, body) {
   const init = body === undefined ? {} : {
     method: "POST",
-    headers: { "Content-Type": "application/json" },
+    headers: { "Content-Type": "application/json", "X-Whirl-Page": pageKey },
     body: JSON.stringify(body),
   };
   const response = await fetch(path, init);
@@ -288,6 +292,7 @@ async function press(button) {
 async function main() {
   show();
   const session = await api("/api/session");
+  pageKey = session.page_key;
   $("login-link").hidden = !(session.token_required && !session.authorised);
   const [machines, jobs] = await Promise.all([api("/api/machines"), api("/api/jobs")]);
   await jobsPage(machines, jobs);
