@@ -63,7 +63,7 @@ impl Serve {
             .env("WHIRL_DB", dir.path().join("runs.sqlite"))
             .current_dir(dir.path())
             .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
+            .stderr(std::fs::File::create(dir.path().join("serve.err")).unwrap())
             .spawn()
             .unwrap();
         let mut line = String::new();
@@ -104,12 +104,20 @@ impl Serve {
     fn url(&self) -> String {
         format!("http://{}/", self.addr)
     }
+
+    /// What it has said on standard error (its refusals among it).
+    fn said(&self) -> String {
+        std::fs::read_to_string(self.dir.path().join("serve.err")).unwrap_or_default()
+    }
 }
 
 impl Drop for Serve {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+        if std::thread::panicking() {
+            eprintln!("whirl serve said:\n{}", self.said());
+        }
     }
 }
 
@@ -1006,4 +1014,174 @@ fn a_stream_to_the_machine_goes_over_its_profiles_connection_and_is_recorded() {
             .status,
         404
     );
+}
+
+// ---------------------------------------------------------------------------------------
+// Attacks: requests that must change nothing (docs/console.md, "Security").
+
+/// A dry run of the trapezoidal example at real time on `serve` (minutes long, so it runs
+/// through every attack), and its machine's name; the run's id.
+fn long_run(serve: &Serve, headers: &[(&str, &str)]) -> (String, u64) {
+    let machine = serve.get("/api/machines").json()[0]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let started = serve.post("/api/runs", headers, &run_request(&machine, 1.0));
+    assert_eq!(started.status, 200, "{}", started.body);
+    let id = started.json()["id"].as_u64().unwrap();
+    (machine, id)
+}
+
+/// That `serve`'s run `id` on `machine` goes on as it was: the same run, running, never
+/// held (a hold or resume pressed would be noted in its record), no other run started.
+fn untouched(serve: &Serve, machine: &str, id: u64, headers: &[(&str, &str)]) {
+    let views = serve.get("/api/runs").json();
+    let view = views
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|v| v["machine"] == machine)
+        .unwrap_or_else(|| panic!("no run on {machine}: {views}"))
+        .clone();
+    assert_eq!(view["id"], id, "{view}");
+    assert_eq!(view["phase"], "running", "{view}");
+    let state = view["state"].as_str().unwrap_or_default();
+    assert!(!state.starts_with("Hold"), "{view}");
+    let record = view["record"].as_u64().expect("the run's record");
+    let shown = serve
+        .get_with(&format!("/api/history/{record}"), headers)
+        .json();
+    assert_eq!(shown["notes"].as_array().map(Vec::len), Some(0), "{shown}");
+}
+
+#[test]
+fn requests_from_other_origins_and_hosts_change_nothing_and_are_said() {
+    let serve = Serve::start(&[]);
+    let (machine, id) = long_run(&serve, &[]);
+    let port = serve.addr.port();
+    let other = "http://127.0.0.1:18490";
+    let rebound = format!("evil.example:{port}");
+    let actions = ["hold", "stop", "resume", "resume-at"];
+    for button in actions {
+        let path = format!("/api/runs/{}/{button}", machine.replace(' ', "%20"));
+        for (headers, status) in [
+            // A simple request from another site: no page key.
+            (
+                vec![
+                    ("Content-Type", "text/plain"),
+                    ("Origin", "http://evil.example"),
+                ],
+                403,
+            ),
+            (
+                vec![
+                    ("Content-Type", "application/x-www-form-urlencoded"),
+                    ("Sec-Fetch-Site", "cross-site"),
+                ],
+                403,
+            ),
+            // Another port of this host, with a key it guessed.
+            (
+                vec![("Origin", other), ("X-Whirl-Page", "0".repeat(32).as_str())],
+                403,
+            ),
+            // The console's own key from another origin (a leaked key is no pass).
+            (
+                vec![("Origin", other), ("X-Whirl-Page", serve.key.as_str())],
+                403,
+            ),
+            // A rebound name: the right key, the wrong Host.
+            (
+                vec![
+                    ("Host", rebound.as_str()),
+                    ("X-Whirl-Page", serve.key.as_str()),
+                ],
+                403,
+            ),
+        ] {
+            let answer = request(serve.addr, "POST", &path, &headers, Some("{}"));
+            assert_eq!(
+                answer.status, status,
+                "{button} {headers:?}: {}",
+                answer.body
+            );
+        }
+        // No action by GET.
+        let answer = serve.get(&path);
+        assert_eq!(answer.status, 405, "GET {button}: {}", answer.body);
+    }
+    // Reading under a rebound name is refused too: the page, its key, the runs.
+    for path in ["/", "/api/session", "/api/runs", "/api/events"] {
+        let answer = serve.get_with(path, &[("Host", &rebound)]);
+        assert_eq!(answer.status, 403, "{path}: {}", answer.body);
+        assert!(!answer.body.contains(&serve.key), "{path}");
+    }
+    untouched(&serve, &machine, id, &[]);
+    // Every answer keeps the page out of frames and says what it is.
+    let page = serve.get("/");
+    assert_eq!(page.header("x-frame-options"), Some("DENY"));
+    assert!(page
+        .header("content-security-policy")
+        .is_some_and(|csp| csp.contains("frame-ancestors 'none'")));
+    assert_eq!(page.header("x-content-type-options"), Some("nosniff"));
+    // Each refusal is said, with the client's address.
+    let said = serve.said();
+    assert!(
+        said.contains(&format!(
+            "refused POST /api/runs/{}/hold from 127.0.0.1:",
+            machine.replace(' ', "%20")
+        )),
+        "{said}"
+    );
+    assert!(said.contains(&format!("not to Host {rebound}")), "{said}");
+}
+
+#[test]
+fn the_login_is_slowed_after_five_wrong_tokens_and_weak_tokens_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    for weak in ["aaaaaaaaaaaaaaaa", "abababababababababab"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_whirl"))
+            .args([
+                "serve",
+                "--listen",
+                "127.0.0.1:0",
+                "--token",
+                weak,
+                "--jobs",
+            ])
+            .arg(repo().join("examples"))
+            .env("WHIRL_DB", dir.path().join("runs.sqlite"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success());
+        assert!(stderr.contains("different characters"), "{stderr}");
+    }
+    let serve = Serve::start(&["--token", TOKEN]);
+    let form = [("Content-Type", "application/x-www-form-urlencoded")];
+    let guess = |token: &str| {
+        serve.post(
+            "/login",
+            &form,
+            &format!("token={token}&page={}", serve.key),
+        )
+    };
+    // Five wrong tokens are told wrong; the sixth, at once, is not even tried: not the
+    // right token either, until the bucket has a try again (2 s a try).
+    for k in 0..5 {
+        assert_eq!(guess(&format!("guess-{k}")).status, 401);
+    }
+    let slowed = guess(TOKEN);
+    assert_eq!(slowed.status, 429, "{}", slowed.body);
+    assert!(slowed.header("set-cookie").is_none());
+    // A login without the page key (a form on another site) is refused before the token
+    // is looked at.
+    let keyless = serve.post("/login", &form, &format!("token={TOKEN}"));
+    assert_eq!(keyless.status, 403, "{}", keyless.body);
+    wait_for(Duration::from_secs(10), "a login try again", || {
+        guess(TOKEN).status == 303
+    });
+    assert!(serve
+        .said()
+        .contains("a wrong access token from 127.0.0.1:"));
 }

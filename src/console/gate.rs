@@ -50,12 +50,12 @@ impl std::fmt::Debug for Gate {
 pub enum Refusal {
     /// A `Host` the console does not answer to (DNS rebinding, or a name not allowed).
     #[error(
-        "this console answers to {allowed}, not to Host {given:?}; name another host with \
+        "this console answers to {allowed}, not to Host {given}; name another host with \
          --allow-host"
     )]
     Host {
-        /// The `Host` header, if any.
-        given: Option<String>,
+        /// The `Host` header, or "(none)".
+        given: String,
         /// The hosts allowed, in words.
         allowed: String,
     },
@@ -111,7 +111,7 @@ impl Gate {
         match host {
             Some(h) if self.hosts.iter().any(|a| a.eq_ignore_ascii_case(h)) => Ok(()),
             _ => Err(Refusal::Host {
-                given: host.map(str::to_owned),
+                given: host.unwrap_or("(none)").to_owned(),
                 allowed: self.hosts.join(", "),
             }),
         }

@@ -18,13 +18,23 @@ pub struct Session {
 impl Session {
     /// A new headless Chromium (`binary`) through the chromedriver at `driver`.
     pub fn new(driver: SocketAddr, binary: &str) -> Session {
+        Session::with_args(driver, binary, &[])
+    }
+
+    /// The same, with more command-line `args` for Chromium (such as
+    /// `--host-resolver-rules`, which gives a test host names of its own).
+    pub fn with_args(driver: SocketAddr, binary: &str, args: &[&str]) -> Session {
+        let mut all = vec![
+            "--headless=new",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-dev-shm-usage",
+            "--window-size=1280,1100",
+        ];
+        all.extend_from_slice(args);
         let capabilities = json!({"capabilities": {"alwaysMatch": {
             "browserName": "chrome",
-            "goog:chromeOptions": {
-                "binary": binary,
-                "args": ["--headless=new", "--no-sandbox", "--disable-gpu",
-                         "--disable-dev-shm-usage", "--window-size=1280,1100"],
-            },
+            "goog:chromeOptions": { "binary": binary, "args": all },
         }}});
         let answer = request(
             driver,
@@ -67,6 +77,22 @@ impl Session {
             Some(json!({"using": "css selector", "value": css})),
         );
         value[ELEMENT].as_str().expect("an element").to_owned()
+    }
+
+    /// How many elements `css` selects.
+    pub fn count(&self, css: &str) -> usize {
+        self.call(
+            "POST",
+            "/elements",
+            Some(json!({"using": "css selector", "value": css})),
+        )
+        .as_array()
+        .map_or(0, Vec::len)
+    }
+
+    /// Goes into the page's frame number `index` (`None`: back to the top page).
+    pub fn frame(&self, index: Option<u64>) {
+        self.call("POST", "/frame", Some(json!({ "id": index })));
     }
 
     /// Clicks what `css` selects, as a user would.
