@@ -1185,3 +1185,167 @@ fn the_login_is_slowed_after_five_wrong_tokens_and_weak_tokens_are_refused() {
         .said()
         .contains("a wrong access token from 127.0.0.1:"));
 }
+
+/// A page of another origin, served on a free loopback port for as long as the test
+/// process lives: `html` for every request.
+fn attacker(html: String) -> u16 {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    std::thread::spawn(move || {
+        for stream in listener.incoming() {
+            let Ok(mut stream) = stream else { continue };
+            let mut head = [0u8; 4096];
+            let _ = std::io::Read::read(&mut stream, &mut head);
+            let answer = format!(
+                "HTTP/1.1 200 OK\r\nContent-Type: text/html\r\nContent-Length: {}\r\n\
+                 Connection: close\r\n\r\n{html}",
+                html.len()
+            );
+            let _ = std::io::Write::write_all(&mut stream, answer.as_bytes());
+        }
+    });
+    port
+}
+
+/// The attacker's page: every way a page may send a request without asking, to each of
+/// `console`'s actions on `machine` (a form of each encoding into a hidden frame, `fetch`
+/// with each simple body and the browser's cookies, an image, a beacon), a JSON `fetch`
+/// that would need a preflight, and the console framed under it. Its title is `done`
+/// once every request has gone.
+fn attack_page(console: &str, machine: &str) -> String {
+    format!(
+        r#"<!doctype html><html><head><title>attacking</title></head><body>
+<iframe name="sink" hidden></iframe>
+<iframe id="framed" src="{console}/" width="800" height="600"></iframe>
+<script>
+const machine = encodeURIComponent({machine:?});
+const urls = ["hold", "stop", "resume", "resume-at"]
+  .map((b) => "{console}/api/runs/" + machine + "/" + b)
+  .concat(["{console}/api/runs"]);
+const pause = (ms) => new Promise((r) => setTimeout(r, ms));
+async function attack() {{
+  for (const url of urls) {{
+    for (const enctype of ["text/plain", "application/x-www-form-urlencoded", "multipart/form-data"]) {{
+      const form = document.createElement("form");
+      form.method = "POST"; form.action = url; form.enctype = enctype; form.target = "sink";
+      const field = document.createElement("input");
+      field.name = "machine"; field.value = {machine:?};
+      form.appendChild(field);
+      document.body.appendChild(form);
+      form.submit();
+      await pause(150);
+    }}
+    for (const type of ["text/plain", "application/x-www-form-urlencoded", "multipart/form-data", null]) {{
+      const init = {{ method: "POST", mode: "no-cors", credentials: "include", body: "{{}}" }};
+      if (type) init.headers = {{ "Content-Type": type }};
+      try {{ await fetch(url, init); }} catch (e) {{}}
+    }}
+    try {{
+      await fetch(url, {{ method: "POST", credentials: "include",
+        headers: {{ "Content-Type": "application/json", "X-Whirl-Page": "0" }}, body: "{{}}" }});
+    }} catch (e) {{}}
+    navigator.sendBeacon(url, "{{}}");
+    new Image().src = url;
+  }}
+  await pause(1000);
+  document.title = "done";
+}}
+attack();
+</script></body></html>"#
+    )
+}
+
+/// Runs the attacker's page at `url` in `page` and waits until it has sent everything.
+fn attacked(page: &Session, url: &str) {
+    page.open(url);
+    page.wait("the attack to end", Duration::from_secs(120), |p| {
+        (p.script("return document.title").as_str() == Some("done")).then_some(())
+    });
+}
+
+#[test]
+fn no_page_of_another_origin_or_rebound_name_can_press_a_button_in_a_real_browser() {
+    let Some((chromium, chromedriver)) = browser() else {
+        return;
+    };
+    let driver = Driver::start(&chromedriver);
+    // Two names of the test's own for 127.0.0.1: a page of another site, and a name
+    // rebound to the console (as DNS rebinding leaves it).
+    let page = Session::with_args(
+        driver.1,
+        chromium.to_str().unwrap(),
+        &["--host-resolver-rules=MAP evil.test 127.0.0.1, MAP rebound.test 127.0.0.1"],
+    );
+
+    // A console on loopback without a token, as the README starts it, cutting.
+    let open = Serve::start(&[]);
+    let (machine, id) = long_run(&open, &[]);
+    let console = format!("http://127.0.0.1:{}", open.addr.port());
+    let evil = attacker(attack_page(&console, &machine));
+    attacked(&page, &format!("http://evil.test:{evil}/"));
+    // Framed under another site's page, the console does not show.
+    page.frame(Some(0));
+    assert_eq!(page.count("#nav-run"), 0, "the console showed in a frame");
+    page.frame(None);
+    untouched(&open, &machine, id, &[]);
+    let said = open.said();
+    // As the page's encodeURIComponent wrote the machine's name.
+    let path = machine.replace(':', "%3A").replace(' ', "%20");
+    for button in ["hold", "stop", "resume", "resume-at"] {
+        let refused = format!("refused POST /api/runs/{path}/{button} from 127.0.0.1:");
+        assert!(said.contains(&refused), "{said}");
+    }
+    assert!(
+        said.contains(&format!("another origin (http://evil.test:{evil})")),
+        "{said}"
+    );
+
+    // Rebound: the browser thinks the console is rebound.test, whose page it may read and
+    // script; the console answers that name nothing, so a script there acts on nothing.
+    let rebound = format!("http://rebound.test:{}/", open.addr.port());
+    page.open(&rebound);
+    assert_eq!(
+        page.count("#nav-run"),
+        0,
+        "the console served a rebound name"
+    );
+    let status = page.script(&format!(
+        "return fetch('/api/runs/' + encodeURIComponent({machine:?}) + '/hold', \
+         {{method: 'POST', headers: {{'Content-Type': 'application/json'}}, body: '{{}}'}})\
+         .then((r) => r.status)"
+    ));
+    assert_eq!(status, 403);
+    untouched(&open, &machine, id, &[]);
+    assert!(
+        open.said()
+            .contains(&format!("not to Host rebound.test:{}", open.addr.port())),
+        "{}",
+        open.said()
+    );
+
+    // A console with a token, the operator logged in: another port of the same host
+    // shares the host's cookies, and still cannot act.
+    let guarded = Serve::start(&["--token", TOKEN]);
+    let token = [("X-Whirl-Token", TOKEN)];
+    let (machine, id) = long_run(&guarded, &token);
+    page.open(&format!("{}login", guarded.url()));
+    page.script(&format!(
+        "document.getElementById('token').value = {TOKEN:?}; return 0"
+    ));
+    page.click("#login");
+    page.wait("the login", Duration::from_secs(30), |p| {
+        (p.script("return document.cookie.length === 0 && location.pathname === '/'")
+            .as_bool()
+            == Some(true))
+        .then_some(())
+    });
+    let console = format!("http://127.0.0.1:{}", guarded.addr.port());
+    let neighbour = attacker(attack_page(&console, &machine));
+    attacked(&page, &format!("http://127.0.0.1:{neighbour}/"));
+    untouched(&guarded, &machine, id, &token);
+    let said = guarded.said();
+    assert!(
+        said.contains(&format!("another origin (http://127.0.0.1:{neighbour})")),
+        "{said}"
+    );
+}

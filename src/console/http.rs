@@ -147,7 +147,8 @@ const SAFETY_HEADERS: [(header::HeaderName, &str); 5] = [
          frame-ancestors 'none'; form-action 'self'; base-uri 'none'",
     ),
     (header::X_CONTENT_TYPE_OPTIONS, "nosniff"),
-    (header::REFERRER_POLICY, "no-referrer"),
+    // Not `no-referrer`: under it a browser sends `Origin: null` with the page's own forms.
+    (header::REFERRER_POLICY, "same-origin"),
     (
         header::HeaderName::from_static("cross-origin-resource-policy"),
         "same-origin",

@@ -146,8 +146,11 @@ impl Session {
             }
             assert!(
                 start.elapsed() < limit,
-                "waited {limit:?} for {what}; the run shows: {}",
-                self.text("run-view")
+                "waited {limit:?} for {what}; {} shows: {}",
+                self.script("return location.href"),
+                self.script(
+                    "return (document.getElementById('run-view') || document.body).textContent"
+                )
             );
             std::thread::sleep(Duration::from_millis(100));
         }
