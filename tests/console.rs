@@ -1349,3 +1349,117 @@ fn no_page_of_another_origin_or_rebound_name_can_press_a_button_in_a_real_browse
         "{said}"
     );
 }
+
+// ---------------------------------------------------------------------------------------
+// A console that ends.
+
+/// `whirl serve` on `profile` with a page open on its run, cutting over `transport`, then
+/// `signal`: the run is stopped as `whirl stream` stops one (held, then ended where it
+/// stands, its resume point in the record), the page says at once, in red, that the console
+/// is gone, and the console exits 0 once its run has ended.
+fn ended_by_a_signal(profile: &str, transport: &str, signal: &str) {
+    let Some((chromium, chromedriver)) = browser() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let jobs = short_jobs(dir.path());
+    let db = dir.path().join("runs.sqlite");
+    let profile = repo().join("machine-profiles").join(profile);
+    let mut serve = Serve::start_with_jobs(dir, &jobs, &["--machine", profile.to_str().unwrap()]);
+    let machine = serve.get("/api/machines").json()[0]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let driver = Driver::start(&chromedriver);
+    let page = Session::new(driver.1, chromium.to_str().unwrap());
+    page.open(&format!("{}#run", serve.url()));
+    let body = serde_json::json!({
+        "machine": machine, "job": "short/job.toml", "transport": transport, "time_scale": 1.0
+    });
+    let started = serve.post("/api/runs", &[], &body.to_string());
+    assert_eq!(started.status, 200, "{}", started.body);
+    let cutting = || {
+        let views = serve.get("/api/runs").json();
+        views[0]["done"].as_u64().unwrap_or(0) > 0
+    };
+    wait_for(Duration::from_secs(120), "the run to cut", cutting);
+    page.wait("the page live", Duration::from_secs(30), |p| {
+        (p.text("link-state") == "live").then_some(())
+    });
+    let killed = Command::new("kill")
+        .args([&format!("-{signal}"), &serve.child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    page.wait(
+        "the page to say the console is gone",
+        Duration::from_secs(60),
+        |p| {
+            let said = p.text("link-state");
+            let red = p.script(
+                "return getComputedStyle(document.getElementById('link-state')).backgroundColor",
+            );
+            (said.starts_with("CONSOLE GONE") || said.starts_with("The console does not answer"))
+                .then_some((said, red))
+        },
+    );
+    let (said, red) = (
+        page.text("link-state"),
+        page.script(
+            "return getComputedStyle(document.getElementById('link-state')).backgroundColor",
+        ),
+    );
+    assert_eq!(red, "rgb(198, 40, 40)", "{said}");
+    shoot(&page, &format!("console-gone-{transport}"));
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = serve.child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(90),
+            "whirl serve did not end"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert!(status.success(), "{status:?}: {}", serve.said());
+    assert!(
+        serve
+            .said()
+            .contains(&format!("whirl serve: SIG{signal}: stopping every run")),
+        "{}",
+        serve.said()
+    );
+    // The record: stopped where it stood, by the console's end, with where to resume.
+    let listed = Command::new(env!("CARGO_BIN_EXE_whirl"))
+        .args(["runs", "list", "--json"])
+        .env("WHIRL_DB", &db)
+        .output()
+        .unwrap();
+    let runs: serde_json::Value = serde_json::from_slice(&listed.stdout).unwrap();
+    let run = &runs[0];
+    assert_eq!(run["outcome"], "stopped", "{runs}");
+    assert!(run["resume_at"].as_u64().is_some_and(|l| l > 1), "{runs}");
+    assert!(
+        run["reason"]
+            .as_str()
+            .unwrap_or_default()
+            .contains("whirl serve ended"),
+        "{runs}"
+    );
+}
+
+#[test]
+fn sigint_to_the_console_stops_its_serial_run_and_the_page_says_it_is_gone() {
+    ended_by_a_signal("sim.toml", "serial", "INT");
+}
+
+#[test]
+fn sigterm_to_the_console_stops_its_modbus_run_and_the_page_says_it_is_gone() {
+    ended_by_a_signal("sim.toml", "modbus-tcp", "TERM");
+}
+
+#[test]
+fn sigint_to_the_console_stops_its_can_run_and_the_page_says_it_is_gone() {
+    ended_by_a_signal("canopen-drives.toml", "can-slcan", "INT");
+}

@@ -48,6 +48,10 @@ pub struct Edge {
     cookie: String,
     sessions: Mutex<Sessions>,
     guesses: Mutex<Guesses>,
+    /// Set when the console is ending: no action is taken any more.
+    ending: std::sync::atomic::AtomicBool,
+    /// Set when the console has ended its runs: each page's events say so and end.
+    closing: tokio::sync::watch::Sender<bool>,
 }
 
 impl Edge {
@@ -59,7 +63,21 @@ impl Edge {
             cookie: token::cookie_name(port),
             sessions: Mutex::default(),
             guesses: Mutex::new(Guesses::new(Instant::now())),
+            ending: std::sync::atomic::AtomicBool::new(false),
+            closing: tokio::sync::watch::Sender::new(false),
         }
+    }
+
+    /// The console is ending: from now on every action is refused (a run started now
+    /// would outlive the stop of the others), while the pages still see the runs stop.
+    pub fn end_actions(&self) {
+        self.ending.store(true, std::sync::atomic::Ordering::SeqCst);
+    }
+
+    /// The console is ending (its runs stopped): every page's event stream says so in a
+    /// `gone` event and ends, so that the server can.
+    pub fn close(&self) {
+        self.closing.send_replace(true);
     }
 }
 
@@ -177,6 +195,12 @@ fn checked(edge: &Edge, request: &axum::extract::Request) -> Result<(), ApiError
     }
     if (acts && path.starts_with("/api/")) || path.starts_with("/api/history/") {
         authorised(edge, headers)?;
+    }
+    if acts && edge.ending.load(std::sync::atomic::Ordering::SeqCst) {
+        return Err(ApiError(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "the console is ending: it is stopping its runs".into(),
+        ));
     }
     Ok(())
 }
@@ -474,16 +498,27 @@ async fn groove(
 }
 
 /// Every change of the runs, as server-sent events: the views now, then again after each
-/// change, at most one event per [`EVENT_GAP`].
+/// change, at most one event per [`EVENT_GAP`]; when the console ends, a `gone` event, and
+/// the stream ends.
 async fn events(
     State(console): State<Arc<Console>>,
+    Extension(edge): Extension<Arc<Edge>>,
 ) -> Sse<impl futures_util::Stream<Item = Result<Event, Infallible>>> {
     let changes = console.registry.subscribe();
+    let closing = edge.closing.subscribe();
     let stream = futures_util::stream::unfold(
-        (console, changes, true),
-        |(console, mut changes, first)| async move {
+        Some((console, changes, closing, true)),
+        |state| async move {
+            let (console, mut changes, mut closing, first) = state?;
             if !first {
-                changes.changed().await.ok()?;
+                let gone = tokio::select! {
+                    changed = changes.changed() => changed.is_err(),
+                    _ = closing.wait_for(|&ended| ended) => true,
+                };
+                if gone {
+                    let word = "whirl serve has ended after stopping its runs";
+                    return Some((Ok(Event::default().event("gone").data(word)), None));
+                }
                 tokio::time::sleep(EVENT_GAP).await;
             }
             changes.borrow_and_update();
@@ -491,7 +526,7 @@ async fn events(
                 serde_json::to_string(&console.registry.views()).expect("run views serialise");
             Some((
                 Ok(Event::default().event("runs").data(views)),
-                (console, changes, false),
+                Some((console, changes, closing, false)),
             ))
         },
     );

@@ -649,6 +649,7 @@ async fn over_modbus(
             .alarm
             .map(|a| a.to_string())
             .or_else(|| outcome.failure.as_ref().map(ToString::to_string))
+            .or_else(|| outcome.stopped.clone())
             .or_else(|| outcome.aborted.then(|| "aborted".to_owned())),
         resume_at,
         // A TCP link has no byte rate to fill. An RTU line's: the exchanges' bit times

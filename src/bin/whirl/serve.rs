@@ -6,6 +6,7 @@
 //! starts again.
 
 use anyhow::{Context, Result};
+use std::future::IntoFuture;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -88,30 +89,65 @@ pub(crate) fn run(
             .context("no randomness for the console's page key")?;
         let edge = Arc::new(Edge::new(gate, token, address.port()));
         say!("whirl serve: the console is at http://{address}/ (Ctrl-C ends it)")?;
-        let mut interrupt = signal(SignalKind::interrupt())?;
-        let mut terminate = signal(SignalKind::terminate())?;
-        let shutdown = async move {
-            tokio::select! {
-                _ = interrupt.recv() => {},
-                _ = terminate.recv() => {},
-            }
-        };
-        let app = http::router(Arc::clone(&console), edge);
-        axum::serve(
-            listener,
-            app.into_make_service_with_connect_info::<SocketAddr>(),
-        )
-        .with_graceful_shutdown(shutdown)
-        .await
-        .context("the console's server")?;
-        stop_runs(&console).await;
+        let mut signals = Signals::install()?;
+        let (stopped, serving_ends) = tokio::sync::oneshot::channel::<()>();
+        let app = http::router(Arc::clone(&console), Arc::clone(&edge));
+        let server = tokio::spawn(
+            axum::serve(
+                listener,
+                app.into_make_service_with_connect_info::<SocketAddr>(),
+            )
+            .with_graceful_shutdown(async move {
+                let _ = serving_ends.await;
+            })
+            .into_future(),
+        );
+        // The first signal stops every run while the pages still see them stop; only then
+        // are the pages told the console is gone, and the server ends.
+        let signal = signals.next().await;
+        // On standard error: standard output may be a pipe nobody reads any more, and
+        // nothing may keep the runs from being stopped.
+        eprintln!("whirl serve: {signal}: stopping every run, then ending");
+        edge.end_actions();
+        stop_runs(&console, &mut signals).await;
+        edge.close();
+        let _ = stopped.send(());
+        server
+            .await
+            .context("the console's server")?
+            .context("the console's server")?;
         Ok(ExitCode::SUCCESS)
     })
 }
 
-/// Stops every run still going, as `whirl stream` does on a signal, and waits for them to
-/// stand (the machine held, where to resume said) before the process ends.
-async fn stop_runs(console: &Console) {
+/// SIGINT and SIGTERM, as `whirl serve` hears them.
+struct Signals {
+    interrupt: tokio::signal::unix::Signal,
+    terminate: tokio::signal::unix::Signal,
+}
+
+impl Signals {
+    fn install() -> Result<Signals> {
+        Ok(Signals {
+            interrupt: signal(SignalKind::interrupt())?,
+            terminate: signal(SignalKind::terminate())?,
+        })
+    }
+
+    /// The next signal's name.
+    async fn next(&mut self) -> &'static str {
+        tokio::select! {
+            _ = self.interrupt.recv() => "SIGINT",
+            _ = self.terminate.recv() => "SIGTERM",
+        }
+    }
+}
+
+/// Stops every run still going, as `whirl stream` does on a signal (held along the path,
+/// then ended where it stands, its resume point logged and recorded), and waits for them to
+/// end before the process does; a second signal aborts them, as a second Ctrl-C does
+/// `whirl stream`'s.
+async fn stop_runs(console: &Console, signals: &mut Signals) {
     let running = |console: &Console| {
         console
             .registry
@@ -121,17 +157,28 @@ async fn stop_runs(console: &Console) {
             .map(|v| v.machine)
             .collect::<Vec<_>>()
     };
-    for machine in running(console) {
-        let _ = console.registry.press(
-            &machine,
-            Command::Stop {
-                reason: "whirl serve ended",
-            },
-        );
-    }
-    let waited = tokio::time::timeout(STOP_WAIT, async {
+    let press = |command: Command| {
+        for machine in running(console) {
+            let _ = console.registry.press(&machine, command);
+        }
+    };
+    press(Command::Stop {
+        reason: "whirl serve ended",
+    });
+    let ended = async {
         while !running(console).is_empty() {
             tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    };
+    tokio::pin!(ended);
+    let waited = tokio::time::timeout(STOP_WAIT, async {
+        tokio::select! {
+            () = &mut ended => {}
+            signal = signals.next() => {
+                eprintln!("whirl serve: {signal} again: aborting every run");
+                press(Command::Abort);
+                ended.await;
+            }
         }
     })
     .await;

@@ -334,10 +334,22 @@ async function main() {
   events.addEventListener("runs", (event) => {
     views = JSON.parse(event.data);
     $("link-state").textContent = "live";
+    $("link-state").className = "muted";
+    document.body.classList.remove("console-gone");
     render();
     historyOnEnd();
   });
-  events.onerror = () => { $("link-state").textContent = "reconnecting…"; };
+  // The console gone is said at once, in red: its buttons no longer reach the machine.
+  const gone = (words) => {
+    $("link-state").textContent = words;
+    $("link-state").className = "alarm";
+    document.body.classList.add("console-gone");
+  };
+  events.addEventListener("gone", (event) => {
+    events.close();
+    gone("CONSOLE GONE: " + event.data + ". Nothing pressed here reaches the machine.");
+  });
+  events.onerror = () => gone("The console does not answer (reconnecting…): nothing pressed here reaches the machine.");
 }
 
 main().catch((e) => { $("run-error").textContent = e.message; });
