@@ -600,6 +600,45 @@ fn the_console_in_a_browser_runs_holds_resumes_stops_and_resumes_at_the_line() {
     eprintln!("screenshots of every page in {}", screenshots().display());
 }
 
+/// The groove page of a run cut part way, at 1920×1080 and 1280×800: the Δ band drawn,
+/// and the radius axis within the groove's own radii (the stock not yet cut, drawn as
+/// machined and magnified, once made it span ±2 500 mm), with a screenshot of each.
+fn groove_mid_run(page: &Session, serve: &Serve, job: &str) {
+    let groove = whirl::config::job::Job::load(&repo().join("examples").join(job)).unwrap();
+    let (rho_min, rho_max) = groove.profile.radius_range();
+    page.open(&format!("{}#groove", serve.url()));
+    for (width, height) in [(1920, 1080), (1280, 800)] {
+        page.resize(width, height);
+        let svg = page.wait("the groove mid-run", Duration::from_secs(60), |p| {
+            p.script(
+                "const s = document.querySelector('#groove-plot svg'); return s && s.outerHTML",
+            )
+            .as_str()
+            .map(str::to_owned)
+        });
+        assert!(
+            svg.contains("Δ band") && svg.contains("not cut yet"),
+            "{svg}"
+        );
+        // The radius axis's tick labels (the text anchored at its end).
+        let ticks: Vec<f64> = svg
+            .split("text-anchor=\"end\">")
+            .skip(1)
+            .filter_map(|t| t.split('<').next()?.parse().ok())
+            .collect();
+        assert!(ticks.len() >= 2, "{svg}");
+        for tick in &ticks {
+            assert!(
+                (rho_min - 1.0..=rho_max + 1.0).contains(tick),
+                "a radius tick at {tick} mm, the groove spanning {rho_min}–{rho_max} mm"
+            );
+        }
+        shoot(page, &format!("groove-mid-run-{width}x{height}"));
+    }
+    page.resize(1280, 1100);
+    page.open(&format!("{}#run", serve.url()));
+}
+
 /// Whether the run page shows the machine standing held, in its transport's words: grbl's
 /// `Hold:0` (the hold complete, the machine at rest), the Modbus register map's `Held`,
 /// the CANopen master's word once every drive stands on the path (drives report no state
@@ -668,6 +707,9 @@ fn dry_run_sequence(
     assert_eq!((page.text("run-position"), done(page)), held, "held still");
     assert!(page.text("run-title").contains("(running)"));
     assert!(held_shown(page, transport));
+    if shots {
+        groove_mid_run(page, serve, job);
+    }
 
     // Resume: running again.
     page.click("#btn-resume");

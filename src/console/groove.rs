@@ -9,7 +9,7 @@
 
 use crate::config::job::Job;
 use crate::geometry::linkage::Ring;
-use crate::judge::measure::{Motion, VerifyError};
+use crate::judge::measure::{Motion, SectionPoint, VerifyError};
 use crate::judge::svg::{Plot, Series};
 use crate::judge::verify::{self, CheckError};
 use crate::log::{Event, Record};
@@ -49,10 +49,16 @@ fn motion(records: &[Record]) -> Result<(Motion, Option<f64>), VerifyError> {
     Ok((motion, z))
 }
 
+/// How much more material than Δ a point may have left and still count as cut: more is
+/// stock the ring has not reached yet (a cut leaves far less; the guard alarms at Δ).
+const UNCUT_DELTAS: f64 = 10.0;
+
 /// The axial section `records`' executed moves cut, against `job`'s target as `ring` (the
 /// ring the run's program was planned with) cuts it, with the Δ band (the target moved Δ out
 /// and in along its normal, magnified as the error is); `None` before the ring has turned
-/// through the work.
+/// through the work. Mid-run, only what is cut is drawn as machined: the target not yet
+/// reached is faded, and the plot keeps the groove's scale (drawn whole, the stock left
+/// on it would span hundreds of millimetres, magnified).
 pub fn section(job: &Job, ring: Ring, records: &[Record]) -> Result<Option<Plot>, CheckError> {
     let (motion, z) = motion(records)?;
     let Some(z) = z.filter(|_| motion.is_turning()) else {
@@ -61,21 +67,61 @@ pub fn section(job: &Job, ring: Ring, records: &[Record]) -> Result<Option<Plot>
     let target = verify::target(job, ring)?;
     let pitch = job.groove.lead / f64::from(job.groove.starts);
     let magnify = magnification(job.cut.delta, pitch);
-    let mut plot = target.section_plot(&motion, z, magnify);
-    let offset = job.cut.delta * magnify;
-    let band = |sign: f64| band(&plot.series[0].points, sign * offset);
-    let (outer, inner) = (band(1.0), band(-1.0));
-    plot.series.push(Series {
-        label: format!("Δ band (± {} mm × {magnify})", job.cut.delta),
-        colour: "seagreen",
-        points: outer,
-    });
-    plot.series.push(Series {
+    let points = target.section(&motion, z);
+    Ok(Some(plot(&points, job.cut.delta, magnify)))
+}
+
+/// The console's section plot of `points`: the target cut so far, the target not yet cut
+/// (faded), the machined section where cut, and the Δ band all along.
+fn plot(points: &[SectionPoint], delta: f64, magnify: f64) -> Plot {
+    let cut = |p: &SectionPoint| p.error_mm <= UNCUT_DELTAS * delta;
+    let gap = (f64::NAN, f64::NAN);
+    let target: Vec<(f64, f64)> = points.iter().map(|p| (p.z, p.rho)).collect();
+    let offset = delta * magnify;
+    let mut series = vec![
+        Series {
+            label: "target, cut".into(),
+            colour: "black",
+            points: points
+                .iter()
+                .map(|p| if cut(p) { (p.z, p.rho) } else { gap })
+                .collect(),
+        },
+        Series {
+            label: "target, not cut yet".into(),
+            colour: "#bbb",
+            points: points
+                .iter()
+                .map(|p| if cut(p) { gap } else { (p.z, p.rho) })
+                .collect(),
+        },
+        Series {
+            label: format!("machined (error × {magnify})"),
+            colour: "crimson",
+            points: points
+                .iter()
+                .map(|p| if cut(p) { p.machined(magnify) } else { gap })
+                .collect(),
+        },
+        Series {
+            label: format!("Δ band (± {delta} mm × {magnify})"),
+            colour: "seagreen",
+            points: band(&target, offset),
+        },
+    ];
+    // The band's other side: the same legend entry.
+    series.push(Series {
         label: String::new(),
         colour: "seagreen",
-        points: inner,
+        points: band(&target, -offset),
     });
-    Ok(Some(plot))
+    Plot {
+        title: format!("axial section at polar angle 0, error magnified {magnify}×"),
+        x_label: "z, mm".into(),
+        y_label: "radius, mm".into(),
+        series,
+        equal_scale: true,
+    }
 }
 
 /// `points` moved `offset` along the polyline's normal (the section's, in its own plane:
@@ -130,6 +176,53 @@ mod tests {
         for ((z, r), (mz, mr)) in points.iter().zip(&moved) {
             assert!((mz - (z - 1.0)).abs() < 1e-12 && (mr - (r + 1.0)).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn mid_run_only_the_cut_is_drawn_machined_and_the_band_is_whole() {
+        // A floor at radius 16: cut within Δ at z 0 and 1, stock 2 mm proud at z 2 (not
+        // reached yet), an overcut of 3Δ at z 3 (a gouge shows, however deep).
+        let delta = 0.01;
+        let at = |z: f64, error_mm: f64| SectionPoint {
+            z,
+            rho: 16.0,
+            error_mm,
+            normal: (0.0, 1.0),
+        };
+        let points = [
+            at(0.0, 0.004),
+            at(1.0, -0.002),
+            at(2.0, 2.0),
+            at(3.0, -0.03),
+        ];
+        let plot = plot(&points, delta, 20.0);
+        let drawn = |k: usize| -> Vec<bool> {
+            plot.series[k]
+                .points
+                .iter()
+                .map(|p| p.0.is_finite())
+                .collect()
+        };
+        assert_eq!(drawn(0), [true, true, false, true], "target, cut");
+        assert_eq!(drawn(1), [false, false, true, false], "target, not cut yet");
+        assert_eq!(drawn(2), [true, true, false, true], "machined");
+        assert_eq!(drawn(3), [true; 4], "the band, out");
+        assert_eq!(drawn(4), [true; 4], "the band, in");
+        // The machined floor: 16 + error × 20.
+        assert!((plot.series[2].points[0].1 - 16.08).abs() < 1e-12);
+        assert!((plot.series[2].points[3].1 - 15.4).abs() < 1e-12);
+        // The band: 16 ± Δ × 20.
+        assert!((plot.series[3].points[2].1 - 16.2).abs() < 1e-12);
+        assert!((plot.series[4].points[2].1 - 15.8).abs() < 1e-12);
+        // Nothing drawn lies beyond the groove's scale: the stock is not.
+        let highest = plot
+            .series
+            .iter()
+            .flat_map(|s| &s.points)
+            .filter(|p| p.1.is_finite())
+            .map(|p| p.1)
+            .fold(f64::MIN, f64::max);
+        assert!(highest <= 16.2 + 1e-12, "{highest}");
     }
 
     #[test]

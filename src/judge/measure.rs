@@ -495,16 +495,15 @@ impl Target {
 
 impl Target {
     /// The axial section (polar angle 0) over one axial pitch centred on `z_centre`, within
-    /// the formed length: the target, and the machined section drawn as the target moved by
-    /// the measured error, magnified `magnify` times, along the surface normal (undercut
-    /// outwards, overcut in).
-    pub fn section_plot(&self, motion: &Motion, z_centre: f64, magnify: f64) -> Plot {
+    /// the formed length: the target's points in order of z, each with the error measured
+    /// there and the direction it is drawn in.
+    pub fn section(&self, motion: &Motion, z_centre: f64) -> Vec<SectionPoint> {
         let p = self.linkage.p;
         let period = TAU / f64::from(self.starts);
         let (z_lo, z_hi) = self.z_range;
         let pitch = (period * p.abs()).min(z_hi - z_lo);
         let z_centre = z_centre.clamp(z_lo + pitch / 2.0, z_hi - pitch / 2.0);
-        let mut rows: Vec<(f64, f64, f64, f64)> = Vec::new(); // z, ρ, machined z, machined ρ
+        let mut points: Vec<SectionPoint> = Vec::new();
         let n = 400;
         for k in 0..n {
             let point = self
@@ -520,18 +519,29 @@ impl Target {
                 if (z - z_centre).abs() > pitch / 2.0 {
                     continue;
                 }
-                let error = self.error_at(&self.probe(point.pos, start, z), &near, motion);
+                let error_mm = self.error_at(&self.probe(point.pos, start, z), &near, motion);
                 let normal = turn(
                     surface_normal(point.pos, point.tangent, p),
                     theta + phi - point.pos.to_angle(),
                 );
                 let axial = DVec2::new(normal.z, normal.x).normalize_or_zero();
-                let rho = point.pos.length();
-                let moved = DVec2::new(z, rho) + axial * error * magnify;
-                rows.push((z, rho, moved.x, moved.y));
+                points.push(SectionPoint {
+                    z,
+                    rho: point.pos.length(),
+                    error_mm,
+                    normal: (axial.x, axial.y),
+                });
             }
         }
-        rows.sort_by(|a, b| a.0.total_cmp(&b.0));
+        points.sort_by(|a, b| a.z.total_cmp(&b.z));
+        points
+    }
+
+    /// [`Target::section`] as a plot: the target, and the machined section drawn as the
+    /// target moved by the measured error, magnified `magnify` times, along the surface
+    /// normal (undercut outwards, overcut in).
+    pub fn section_plot(&self, motion: &Motion, z_centre: f64, magnify: f64) -> Plot {
+        let points = self.section(motion, z_centre);
         Plot {
             title: format!("axial section at polar angle 0, error magnified {magnify}×"),
             x_label: "z, mm".into(),
@@ -540,16 +550,42 @@ impl Target {
                 Series {
                     label: "target".into(),
                     colour: "black",
-                    points: rows.iter().map(|r| (r.0, r.1)).collect(),
+                    points: points.iter().map(|s| (s.z, s.rho)).collect(),
                 },
                 Series {
                     label: format!("machined (error × {magnify})"),
                     colour: "crimson",
-                    points: rows.iter().map(|r| (r.2, r.3)).collect(),
+                    points: points.iter().map(|s| s.machined(magnify)).collect(),
                 },
             ],
             equal_scale: true,
         }
+    }
+}
+
+/// One point of an axial section ([`Target::section`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SectionPoint {
+    /// Axial position, mm.
+    pub z: f64,
+    /// The target's radius there, mm.
+    pub rho: f64,
+    /// The error measured there, mm: positive where material is left (undercut), negative
+    /// where too much was cut (overcut).
+    pub error_mm: f64,
+    /// The surface normal in the axial plane, (z, ρ), unit: the direction an undercut is
+    /// drawn in.
+    pub normal: (f64, f64),
+}
+
+impl SectionPoint {
+    /// Where the machined surface is drawn with its error magnified `magnify` times.
+    pub fn machined(&self, magnify: f64) -> (f64, f64) {
+        let moved = self.error_mm * magnify;
+        (
+            self.z + self.normal.0 * moved,
+            self.rho + self.normal.1 * moved,
+        )
     }
 }
 

@@ -118,24 +118,39 @@ impl Plot {
             (ay0 + ay1) / 2.0,
             escape(&self.y_label)
         );
-        for (i, s) in self.series.iter().enumerate() {
+        let mut entries = 0;
+        for s in &self.series {
+            // A point that is not finite is a gap: the line stops there and starts again.
             let mut d = String::new();
-            for (k, &(x, y)) in s.points.iter().enumerate() {
+            let mut pen_down = false;
+            for &(x, y) in &s.points {
+                if !(x.is_finite() && y.is_finite()) {
+                    pen_down = false;
+                    continue;
+                }
                 let _ = write!(
                     d,
                     "{}{:.2} {:.2} ",
-                    if k == 0 { 'M' } else { 'L' },
+                    if pen_down { 'L' } else { 'M' },
                     px(x),
                     py(y)
                 );
+                pen_down = true;
             }
-            let _ = writeln!(
-                out,
-                r#"<path d="{}" fill="none" stroke="{}" stroke-width="1.5"/>"#,
-                d.trim_end(),
-                s.colour
-            );
-            let ly = MARGIN + 18.0 * i as f64;
+            if !d.is_empty() {
+                let _ = writeln!(
+                    out,
+                    r#"<path d="{}" fill="none" stroke="{}" stroke-width="1.5"/>"#,
+                    d.trim_end(),
+                    s.colour
+                );
+            }
+            // A series without a label (the other side of a band) has no legend entry.
+            if s.label.is_empty() {
+                continue;
+            }
+            let ly = MARGIN + 18.0 * f64::from(entries);
+            entries += 1;
             let _ = writeln!(
                 out,
                 r#"<line x1="{:.1}" y1="{ly:.1}" x2="{:.1}" y2="{ly:.1}" stroke="{}" stroke-width="2"/><text x="{:.1}" y="{:.1}">{}</text>"#,
@@ -254,5 +269,36 @@ mod tests {
             "axes and two series"
         );
         assert!(svg.contains("a &lt; b &amp; c"), "text is escaped");
+    }
+
+    #[test]
+    fn a_gap_breaks_the_line_and_an_unlabelled_series_has_no_legend_entry() {
+        let plot = Plot {
+            title: String::new(),
+            x_label: String::new(),
+            y_label: String::new(),
+            series: vec![
+                Series {
+                    label: "cut".into(),
+                    colour: "black",
+                    points: vec![(0.0, 0.0), (1.0, 1.0), (f64::NAN, f64::NAN), (2.0, 0.0)],
+                },
+                Series {
+                    label: String::new(),
+                    colour: "green",
+                    points: vec![(0.0, 1.0), (2.0, 1.0)],
+                },
+            ],
+            equal_scale: false,
+        };
+        let svg = plot.to_svg();
+        let cut = svg
+            .lines()
+            .find(|l| l.contains("stroke=\"black\" stroke-width=\"1.5\""))
+            .unwrap();
+        assert_eq!(cut.matches('M').count(), 2, "{cut}");
+        assert_eq!(cut.matches('L').count(), 1, "{cut}");
+        // One legend entry: a line of width 2 and its text.
+        assert_eq!(svg.matches("stroke-width=\"2\"").count(), 1, "{svg}");
     }
 }

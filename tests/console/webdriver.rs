@@ -90,6 +90,15 @@ impl Session {
         .map_or(0, Vec::len)
     }
 
+    /// Sizes the browser's window, CSS pixels.
+    pub fn resize(&self, width: u32, height: u32) {
+        self.call(
+            "POST",
+            "/window/rect",
+            Some(json!({"width": width, "height": height})),
+        );
+    }
+
     /// Goes into the page's frame number `index` (`None`: back to the top page).
     pub fn frame(&self, index: Option<u64>) {
         self.call("POST", "/frame", Some(json!({ "id": index })));
