@@ -698,16 +698,31 @@ fn dry_run_sequence(
     page.wait("progress to advance", long, |p| {
         done(p).filter(|&n| n > first)
     });
+    assert_eq!(page.text("run-banner-word"), "RUNNING");
+    assert!(page.script("return document.getElementById('btn-resume').disabled") == true);
+    if shots {
+        shoot(page, "run-running");
+    }
 
-    // Hold: the simulator holds and stands.
-    page.click("#btn-hold");
+    // Hold, by the space bar: the simulator holds and stands; the page says so in its
+    // banner and title, and offers Resume, not Hold.
+    page.script(
+        "document.dispatchEvent(new KeyboardEvent('keydown', {code: 'Space', key: ' '})); return 0",
+    );
     page.wait("the hold", long, |p| held_shown(p, transport).then_some(()));
     let held = (page.text("run-position"), done(page));
     std::thread::sleep(Duration::from_secs(1));
     assert_eq!((page.text("run-position"), done(page)), held, "held still");
-    assert!(page.text("run-title").contains("(running)"));
+    assert!(page.text("run-title").contains("(held)"));
     assert!(held_shown(page, transport));
+    page.wait("the banner to say held", long, |p| {
+        (p.text("run-banner-word") == "HELD").then_some(())
+    });
+    assert!(page.script("return document.getElementById('btn-hold').disabled") == true);
+    let left = page.text("run-left");
+    assert!(left.contains("(held: waiting)"), "{left}");
     if shots {
+        shoot(page, "run-held");
         groove_mid_run(page, serve, job);
     }
 
@@ -765,12 +780,21 @@ fn dry_run_sequence(
     });
     assert_eq!(page.text("feed-error"), "");
 
-    // Stop: the run ends, offering where to resume.
+    // Stop, asked twice: the first press only asks; the run ends, offering where to
+    // resume, and the page says it is stopped, not held, and measures nothing of a part
+    // cut part way.
     page.click("#btn-stop");
+    assert!(page.displayed("#stop-confirm"));
+    std::thread::sleep(Duration::from_millis(500));
+    assert!(page.text("run-title").contains("(running)"), "one press stops nothing");
+    page.click("#btn-stop-confirm");
     page.wait("the run to end", long, |p| {
         p.text("run-title").contains("(ended)").then_some(())
     });
     assert!(page.text("run-outcome").starts_with("stopped"));
+    assert_eq!(page.text("run-banner-word"), "STOPPED");
+    assert_eq!(page.text("run-state"), "– (the run has ended)");
+    assert!(page.text("run-measured").starts_with("not measured"));
     page.wait("the resume offer", long, |p| {
         p.displayed("#resume-offer").then_some(())
     });

@@ -52,6 +52,16 @@ function duration(s) {
   return m + ":" + String(Math.floor(s % 60)).padStart(2, "0");
 }
 
+// A span of time in words with its units: "1 h 10 min 53 s", "10 min 53 s", "53 s".
+function span(s) {
+  if (s === null || s === undefined || !isFinite(s)) return "–";
+  s = Math.max(0, Math.round(s));
+  const h = Math.floor(s / 3600), m = Math.floor((s % 3600) / 60), rest = s % 60;
+  if (h > 0) return h + " h " + m + " min " + rest + " s";
+  if (m > 0) return m + " min " + rest + " s";
+  return rest + " s";
+}
+
 function mm(x) { return x.toFixed(4); }
 
 async function jobsPage(machines, jobs) {
@@ -105,30 +115,117 @@ function current() {
   return views.find((v) => v.machine === machine);
 }
 
+// Whether the machine stands held, by the controller's own word: grbl's Hold:0, the
+// register map's Held; the CANopen master's message that the drives stand on the path,
+// not yet followed by a resume (drives report no state of the job).
+function held(v) {
+  const s = v.state || "";
+  if (s.startsWith("Hold") || s === "Held") return true;
+  const stood = v.messages.map((m) => m.includes("the drives stand on the path")).lastIndexOf(true);
+  const resumed = v.messages.map((m) => m.startsWith("resume requested")).lastIndexOf(true);
+  return stood > resumed;
+}
+
+// The machine's state for the banner: a word, its colour and what the operator does next.
+function machineState(v) {
+  if (!v) return ["NO RUN", "idle", "Choose a job, then dry-run it or stream it."];
+  if (v.phase !== "running") {
+    if (v.completed) return ["COMPLETED", "done", v.measured ? measuredText(v) : "The program ran to its end."];
+    if ((v.outcome || "").startsWith("stopped")) {
+      return ["STOPPED", "held", v.resume ? "The run ended at line " + v.resume.line +
+        ": resume there below, or start another run." : "The run ended where it stood."];
+    }
+    return ["FAILED", "alarm", (v.outcome || "") + " — see the messages below."];
+  }
+  if (v.alarms.length) {
+    return ["ALARM", "alarm", v.alarms[v.alarms.length - 1] +
+      " — the machine has stopped: Stop the run, clear the alarm at the machine, then resume at the line offered."];
+  }
+  if ((v.state || "").startsWith("Hold:1")) return ["HOLDING", "held", "Slowing to a stand along the path…"];
+  if (held(v)) return ["HELD", "held", "Standing on the path: Resume to go on, or Stop to end the run here."];
+  return ["RUNNING", "run", (v.line ? "Line " + v.line + " of " + v.total + ". " : "") + "Space bar or Hold: feed hold."];
+}
+
+function measuredText(v) {
+  const m = v.measured;
+  return (m.within_delta ? "within Δ" : "beyond Δ") + ": overcut " + mm(m.max_overcut_mm) +
+    " mm, undercut " + mm(m.max_undercut_mm) + " mm (Δ " + m.delta_mm + " mm)";
+}
+
+// C within its turn, and the turn: 370.5° is 10.50° of turn 1 (turns counted from 0°).
+function turnOf(c) {
+  const turn = Math.floor(c / 360);
+  return (c - 360 * turn).toFixed(2) + "° (turn " + turn + ")";
+}
+
+// The workpiece's speed from the last two views of a run: C's turns over machine time
+// (wall time × the run's time scale).
+let lastSeen = null;
+function workpieceRpm(v) {
+  if (!v.position) return null;
+  const now = { id: v.id, c: v.position[2], t: v.elapsed_s * v.time_scale };
+  const before = lastSeen;
+  if (!before || before.id !== v.id || now.t <= before.t) {
+    lastSeen = now;
+    return null;
+  }
+  if (now.t - before.t < 0.5) return before.rpm;
+  now.rpm = ((now.c - before.c) / 360) / (now.t - before.t) * 60;
+  lastSeen = now;
+  return now.rpm;
+}
+
+// The time left stops while the machine stands held (the rate it is reckoned from would
+// make it grow).
+let frozenLeft = null;
+
 function render() {
   const v = current();
   const running = !!v && v.phase === "running";
-  $("btn-hold").disabled = !running;
-  $("btn-resume").disabled = !running;
+  const standing = running && held(v);
+  const [word, css, todo] = machineState(v);
+  $("run-banner").className = "banner " + css;
+  $("run-banner-word").textContent = word;
+  $("run-banner-todo").textContent = todo;
+  $("btn-hold").disabled = !running || standing;
+  $("btn-resume").disabled = !standing;
   $("btn-stop").disabled = !running;
+  if (!running) $("stop-confirm").hidden = true;
   $("run-start").disabled = running;
   $("run-stream").disabled = running;
   if (!v) return;
-  $("run-title").textContent = "#" + v.id + " " + v.job + " on " + v.machine + " over " +
+  const name = v.record ? "record " + v.record : "run " + v.id + " (unrecorded)";
+  $("run-title").textContent = name + ": " + v.job + " on " + v.machine + " over " +
     v.transport + " at " + v.time_scale + "×" + (v.resumed_at ? ", resumed at line " + v.resumed_at : "") +
-    (running ? " (running)" : " (ended)");
-  $("run-state").textContent = v.state || "–";
+    (running ? (standing ? " (held)" : " (running)") : " (ended)");
+  $("run-state").textContent = running ? (v.state || "–") : "– (the run has ended)";
   $("run-line").textContent = v.line ? v.line + " of " + v.total : "–";
   $("run-progress").value = v.total ? v.done / v.total : 0;
   $("run-done").textContent = v.done + " of " + v.total + " " + v.unit;
-  $("run-left").textContent = duration(v.left_s);
-  $("run-position").textContent = v.position ?
-    "X " + v.position[0].toFixed(3) + " mm, Z " + v.position[1].toFixed(3) + " mm, C " + v.position[2].toFixed(2) + "°" : "–";
+  $("run-elapsed").textContent = span(v.elapsed_s);
+  if (standing && (!frozenLeft || frozenLeft.id !== v.id)) frozenLeft = { id: v.id, left: v.left_s };
+  if (!standing) frozenLeft = null;
+  const left = running ? (frozenLeft ? frozenLeft.left : v.left_s) : null;
+  $("run-left").textContent = left === null || left === undefined ? "–" :
+    span(left) + (standing ? " (held: waiting)" : "");
+  // The wall clock's end at the pace so far (the same for any transport and time scale).
+  const pace = running && !standing && v.done > 0 && v.done < v.total ?
+    v.elapsed_s * (v.total - v.done) / v.done : null;
+  $("run-finish").textContent = pace === null ? "–" :
+    new Date(Date.now() + 1000 * pace).toLocaleTimeString() + " (at the pace so far)";
+  const rpm = running && !standing ? workpieceRpm(v) : null;
+  $("run-rpm").textContent = rpm === null || rpm === undefined ? "–" : Math.abs(rpm).toFixed(2) + " rpm (C)";
+  const p = v.position;
+  for (const [id, text] of [["x", p && p[0].toFixed(3)], ["z", p && p[1].toFixed(3)], ["c", p && turnOf(p[2])]]) {
+    $("dro-" + id).textContent = text || "–";
+    $("dro-w" + id).textContent = text || "–";
+  }
+  $("run-position").textContent = p ?
+    "X " + p[0].toFixed(3) + " mm, Z " + p[1].toFixed(3) + " mm, C " + p[2].toFixed(2) + "°" : "–";
   $("run-link").textContent = v.link_use === null ? "–" : (100 * v.link_use).toFixed(1) + " %";
   $("run-outcome").textContent = v.outcome || "–";
-  $("run-measured").textContent = v.measured ?
-    (v.measured.within_delta ? "within Δ" : "beyond Δ") + ": overcut " + mm(v.measured.max_overcut_mm) +
-    " mm, undercut " + mm(v.measured.max_undercut_mm) + " mm (Δ " + v.measured.delta_mm + " mm)" : "–";
+  $("run-measured").textContent = v.measured && v.completed ? measuredText(v) :
+    (running ? "–" : "not measured: the run stopped part way (resume it to finish the groove)");
   $("run-alarms").replaceChildren(...v.alarms.map((a) => Object.assign(document.createElement("li"), { textContent: a })));
   $("run-messages").replaceChildren(...v.messages.map((m) => Object.assign(document.createElement("li"), { textContent: m })));
   renderFeed(v, running);
@@ -155,8 +252,12 @@ function renderFeed(v, running) {
     $(id).disabled = !running;
   }
   const input = $("feed-percent");
-  input.min = f.cap.min_percent;
-  input.max = f.cap.max_percent;
+  const slider = $("feed-slider");
+  slider.disabled = !running;
+  for (const box of [input, slider]) {
+    box.min = f.cap.min_percent;
+    box.max = f.cap.max_percent;
+  }
   // The value asked into the box when it changes, not while the operator types; another
   // run's refusal or note cleared.
   const run = v.machine + "#" + v.id;
@@ -167,6 +268,7 @@ function renderFeed(v, running) {
   const shown = run + ":" + f.asked;
   if (feedShown !== shown) {
     input.value = f.asked;
+    slider.value = f.asked;
     feedShown = shown;
   }
   $("feed-cap").textContent = "Offered from " + f.cap.min_percent + " % up to the cap of " +
@@ -298,10 +400,16 @@ async function main() {
   await jobsPage(machines, jobs);
   fill($("run-machine"), machines);
   fill($("run-job"), jobs);
+  // No job is chosen for the operator: the first in the list is no better a guess.
+  $("run-job").prepend(new Option("— choose a job —", "", true, true));
   $("run-machine").onchange = render;
   $("run-form").onsubmit = async (event) => {
     event.preventDefault();
     $("run-error").textContent = "";
+    if (!$("run-job").value) {
+      $("run-error").textContent = "Choose a job first.";
+      return;
+    }
     try {
       await api("/api/runs", {
         machine: $("run-machine").value,
@@ -315,6 +423,10 @@ async function main() {
   };
   $("run-stream").onclick = async () => {
     $("run-error").textContent = "";
+    if (!$("run-job").value) {
+      $("run-error").textContent = "Choose a job first.";
+      return;
+    }
     try {
       await api("/api/runs", { machine: $("run-machine").value, job: $("run-job").value, stream: true });
     } catch (e) {
@@ -324,7 +436,24 @@ async function main() {
   $("history-form").onsubmit = (event) => { event.preventDefault(); history(); };
   $("btn-hold").onclick = () => press("hold");
   $("btn-resume").onclick = () => press("resume");
-  $("btn-stop").onclick = () => press("stop");
+  // Stop ends the run: asked twice, on the page (not a dialog a stray key dismisses).
+  $("btn-stop").onclick = () => { $("stop-confirm").hidden = false; $("btn-stop-confirm").focus(); };
+  $("btn-stop-cancel").onclick = () => { $("stop-confirm").hidden = true; };
+  $("btn-stop-confirm").onclick = () => { $("stop-confirm").hidden = true; press("stop"); };
+  // The space bar holds a running machine, wherever the page's focus is but in a field of
+  // the run form; it never starts or resumes motion.
+  document.addEventListener("keydown", (event) => {
+    if (event.code !== "Space" || event.repeat) return;
+    const tag = event.target.tagName;
+    if (tag === "INPUT" || tag === "SELECT" || tag === "TEXTAREA") return;
+    const v = current();
+    if (v && v.phase === "running" && !held(v)) {
+      event.preventDefault();
+      press("hold");
+    }
+  });
+  $("feed-slider").oninput = () => { $("feed-percent").value = $("feed-slider").value; };
+  $("feed-slider").onchange = () => feed({ percent: Number($("feed-slider").value) });
   $("btn-resume-at").onclick = () => press("resume-at");
   $("feed-set").onclick = () => feed({ percent: Number($("feed-percent").value) });
   $("feed-down").onclick = () => feed({ step: -10 });
