@@ -699,6 +699,16 @@ fn dry_run_sequence(
         done(p).filter(|&n| n > first)
     });
     assert_eq!(page.text("run-banner-word"), "RUNNING");
+    // The program around the line executing, that line marked: one render's both.
+    let (marked, line) = page.wait("the line executing", long, |p| {
+        let both = p.script(
+            "const l = document.querySelector('#run-around li.executing'); \
+             return l && [l.value, document.getElementById('run-line').textContent]",
+        );
+        let marked = both[0].as_u64()?;
+        Some((marked, both[1].as_str()?.to_owned()))
+    });
+    assert_eq!(first_number(&line), Some(marked as usize), "{line}");
     assert!(page.script("return document.getElementById('btn-resume').disabled") == true);
     if shots {
         shoot(page, "run-running");
@@ -786,7 +796,10 @@ fn dry_run_sequence(
     page.click("#btn-stop");
     assert!(page.displayed("#stop-confirm"));
     std::thread::sleep(Duration::from_millis(500));
-    assert!(page.text("run-title").contains("(running)"), "one press stops nothing");
+    assert!(
+        page.text("run-title").contains("(running)"),
+        "one press stops nothing"
+    );
     page.click("#btn-stop-confirm");
     page.wait("the run to end", long, |p| {
         p.text("run-title").contains("(ended)").then_some(())

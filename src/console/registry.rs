@@ -90,6 +90,24 @@ pub struct RunView {
     /// The feed override: what may be asked, what was, and what the controller runs at;
     /// `None` for a run that takes none.
     pub feed: Option<FeedView>,
+    /// The program's lines around the one executing (1-based number and text), so the
+    /// operator sees where in the program the machine is and what comes next.
+    pub around: Vec<(usize, String)>,
+    /// The ring's speed the program asks (its `S` word), rpm.
+    pub ring_rpm: Option<f64>,
+}
+
+/// How many program lines the page shows before and after the one executing.
+pub const AROUND: usize = 2;
+
+/// The lines of `program` (its text, line by line) from [`AROUND`] before `line` (1-based)
+/// to [`AROUND`] after it, numbered.
+pub fn around(program: &[String], line: usize) -> Vec<(usize, String)> {
+    let first = line.saturating_sub(AROUND).max(1);
+    let last = (line + AROUND).min(program.len());
+    (first..=last)
+        .map(|n| (n, program[n - 1].clone()))
+        .collect()
 }
 
 /// A run's feed override, for the page.
@@ -162,6 +180,8 @@ impl RunView {
             executed: 0,
             record: None,
             feed: None,
+            around: Vec::new(),
+            ring_rpm: None,
         }
     }
 
@@ -393,6 +413,16 @@ impl Registry {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_lines_around_the_one_executing_are_two_each_side_within_the_program() {
+        let program: Vec<String> = (1..=6).map(|n| format!("N{n}")).collect();
+        let numbers = |line| -> Vec<usize> { around(&program, line).iter().map(|l| l.0).collect() };
+        assert_eq!(numbers(3), [1, 2, 3, 4, 5]);
+        assert_eq!(numbers(1), [1, 2, 3]);
+        assert_eq!(numbers(6), [4, 5, 6]);
+        assert_eq!(around(&program, 4)[2], (4, "N4".to_owned()));
+    }
     use crate::transport::control;
 
     fn view(machine: &str) -> RunView {

@@ -11,7 +11,7 @@ use super::groove;
 use super::lock::{self, LockError, MachineLock};
 use super::paths::{JobDir, PathError};
 use super::record::{self, Records};
-use super::registry::{Inputs, Registry, ResumePoint, RunError, RunView};
+use super::registry::{around, Inputs, Registry, ResumePoint, RunError, RunView};
 use super::resume::{self, ResumeError, ResumeOptions};
 use crate::config::job::Job;
 use crate::config::machine::MachineProfile;
@@ -363,6 +363,10 @@ impl Console {
         let mut view = RunView::new(machine, &inputs.job_name, &transport, inputs.time_scale);
         view.resumed_at = resume_at;
         view.total = inputs.posted.lines.len();
+        view.ring_rpm = inputs.posted.program.moves.iter().find_map(|m| match m {
+            crate::program::Move::SpindleOn { rpm } => Some(*rpm),
+            _ => None,
+        });
         let start = cut.iter().rev().find_map(|r| match &r.event {
             Event::Executed { to, .. } => Some(*to),
             _ => None,
@@ -742,6 +746,7 @@ fn progress(reader: Arc<Mutex<LogReader>>, inputs: &RunInputs) -> ProgressFn {
             Some(*sum)
         }))
         .collect();
+    let program = Arc::new(inputs.posted.lines.clone());
     Box::new(move |p: &Progress| {
         let mut reader = reader.lock().unwrap_or_else(|p| p.into_inner());
         let simulated = p.elapsed.as_secs_f64() * scale;
@@ -756,7 +761,11 @@ fn progress(reader: Arc<Mutex<LogReader>>, inputs: &RunInputs) -> ProgressFn {
                 v.unit = p.unit.name().to_owned();
                 v.done = p.done;
                 v.total = p.total;
-                v.line = p.line.map(|l| l + 1);
+                let line = p.line.map(|l| l + 1);
+                if line != v.line {
+                    v.around = line.map_or_else(Vec::new, |l| around(&program, l));
+                }
+                v.line = line;
                 v.elapsed_s = p.elapsed.as_secs_f64();
                 v.left_s = p.left.map(|l| l.as_secs_f64());
                 v.state.clone_from(&p.state);

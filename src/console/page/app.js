@@ -200,6 +200,14 @@ function render() {
     (running ? (standing ? " (held)" : " (running)") : " (ended)");
   $("run-state").textContent = running ? (v.state || "–") : "– (the run has ended)";
   $("run-line").textContent = v.line ? v.line + " of " + v.total : "–";
+  $("run-around").replaceChildren(...v.around.map(([n, text]) => {
+    const item = document.createElement("li");
+    item.value = n;
+    item.textContent = text;
+    if (n === v.line) item.className = "executing";
+    return item;
+  }));
+  $("run-ring").textContent = v.ring_rpm ? v.ring_rpm + " rpm (the program's S)" : "–";
   $("run-progress").value = v.total ? v.done / v.total : 0;
   $("run-done").textContent = v.done + " of " + v.total + " " + v.unit;
   $("run-elapsed").textContent = span(v.elapsed_s);
