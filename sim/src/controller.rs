@@ -113,6 +113,12 @@ pub struct Controller {
     build_info: String,
     now: f64,
     rx: RxBuffer,
+    /// Bytes waiting in the link for room in the RX buffer
+    /// ([`ControllerOptions::rx_backpressure`]).
+    link: VecDeque<u8>,
+    /// A jog cancel (0x85) stopping a jog: the main loop reads no line until the machine
+    /// stands (grbl's jog-cancel suspend), so the next line finds it idle.
+    jog_cancelling: bool,
     assembler: LineAssembler,
     output: String,
     events: Vec<Event>,
@@ -199,6 +205,8 @@ impl Controller {
             profile_travel: travel,
             now: 0.0,
             rx: RxBuffer::new(options.rx_buffer_size),
+            link: VecDeque::new(),
+            jog_cancelling: false,
             assembler: LineAssembler::new(machine.max_line_length),
             output: report::banner(),
             events: Vec::new(),
@@ -234,22 +242,19 @@ impl Controller {
     /// Bytes from the sender, in order. Real-time commands act at once (their output lands
     /// in the output immediately, between whole lines); the rest fills the RX buffer, and
     /// the main loop takes lines from it as far as it can without simulated time passing.
+    /// With [`ControllerOptions::rx_backpressure`], bytes that find the buffer at its
+    /// reserve wait in the link, real-time ones too, until lines have been read.
     pub fn receive(&mut self, bytes: &[u8]) {
         let mut dropped = 0;
-        for &byte in bytes {
-            match classify(byte) {
-                ByteClass::Realtime(command) => self.realtime(command),
-                ByteClass::Stored => {
-                    if self.rx.push(byte) {
-                        self.pump();
-                    } else {
-                        if dropped == 0 {
-                            self.output.push_str(&report::message("RX overflow"));
-                        }
-                        dropped += 1;
-                    }
+        match self.options.rx_backpressure {
+            None => {
+                for &byte in bytes {
+                    self.take(byte, &mut dropped);
                 }
-                ByteClass::Dropped => {}
+            }
+            Some(_) => {
+                self.link.extend(bytes);
+                self.deliver();
             }
         }
         if dropped > 0 {
@@ -259,6 +264,40 @@ impl Controller {
             });
         }
         self.note_state();
+    }
+
+    /// One byte through the receive interrupt: a real-time command acts, another is stored
+    /// (or, with the buffer full, dropped and counted in `dropped`).
+    fn take(&mut self, byte: u8, dropped: &mut usize) {
+        match classify(byte) {
+            ByteClass::Realtime(command) => self.realtime(command),
+            ByteClass::Stored => {
+                if self.rx.push(byte) {
+                    self.pump();
+                } else {
+                    if *dropped == 0 {
+                        self.output.push_str(&report::message("RX overflow"));
+                    }
+                    *dropped += 1;
+                }
+            }
+            ByteClass::Dropped => {}
+        }
+    }
+
+    /// Hands the bytes waiting in the link to the receive interrupt while the RX buffer has
+    /// more than the reserve free.
+    fn deliver(&mut self) {
+        let Some(reserve) = self.options.rx_backpressure else {
+            return;
+        };
+        let mut dropped = 0;
+        while self.rx.free() > reserve {
+            let Some(byte) = self.link.pop_front() else {
+                break;
+            };
+            self.take(byte, &mut dropped);
+        }
     }
 
     /// Lets `dt` seconds of simulated time pass: motion runs, dwells count down, and the
@@ -295,6 +334,7 @@ impl Controller {
             }
             self.collect_executed();
             self.pump();
+            self.deliver();
             stalls = if used > 0.0 || outcome.event.is_some() {
                 0
             } else {

@@ -22,6 +22,12 @@ impl Controller {
                 }
                 continue;
             }
+            if self.jog_cancelling {
+                if self.motion.is_running() {
+                    break;
+                }
+                self.jog_cancelling = false;
+            }
             let Some(item) = self.rx.pop() else {
                 break;
             };

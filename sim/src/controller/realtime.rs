@@ -80,6 +80,7 @@ impl Controller {
         }
         self.exec = None;
         self.jogging = false;
+        self.jog_cancelling = false;
         self.rx.clear();
         self.assembler.clear();
         self.last_error = None;
@@ -202,14 +203,17 @@ impl Controller {
     /// Jog cancel (0x85, grblHAL's `CMD_JOG_CANCEL`): the RX buffer and the line being
     /// read are dropped unanswered and the sticky error cleared, whatever the state; a jog
     /// slows to a stop and its queue is dropped, and the parser takes the position the
-    /// machine stopped at. A jog line already waiting for planner room is not in the
-    /// buffer: as in grblHAL's `mc_line`, it is queued once the cancel has emptied the
-    /// planner, and starts a new jog.
+    /// machine stopped at. Until it stands the main loop reads no further line (grbl's
+    /// suspend for a jog cancel), so a G-code line sent right after the cancel finds the
+    /// machine idle and runs (`ok`, as on grblHAL) instead of `error:9`. A jog line already
+    /// waiting for planner room is not in the buffer: as in grblHAL's `mc_line`, it is
+    /// queued once the cancel has emptied the planner, and starts a new jog.
     pub(super) fn jog_cancel(&mut self) {
         self.rx.clear();
         self.assembler.clear();
         self.last_error = None;
         if self.state() == MachineState::Jog {
+            self.jog_cancelling = true;
             self.motion.cancel(self.now);
             self.collect_executed();
             self.pump();
