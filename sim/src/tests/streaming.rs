@@ -405,7 +405,10 @@ fn a_link_with_backpressure_holds_real_time_bytes_behind_a_full_buffer() {
     sim.receive(b"?");
     run(&mut sim, 601.0, 0.5);
     let printed = output(&mut sim);
-    assert!(printed.iter().any(|l| l.starts_with("<Run|")), "{printed:?}");
+    assert!(
+        printed.iter().any(|l| l.starts_with("<Run|")),
+        "{printed:?}"
+    );
     // A reserve that leaves no room is refused.
     let bad = Controller::new(
         &profile(),
@@ -433,7 +436,8 @@ fn the_planner_holds_grblhals_default_100_blocks() {
     assert!(send(&mut sim, "?")[0].contains("|Bf:100,1023|"));
     let info = send(&mut sim, "$I\n");
     assert!(
-        info.iter().any(|l| l.starts_with("[OPT:") && l.ends_with(",100,1024,4,0]")),
+        info.iter()
+            .any(|l| l.starts_with("[OPT:") && l.ends_with(",100,1024,4,0]")),
         "{info:?}"
     );
 }
