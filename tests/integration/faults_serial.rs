@@ -511,11 +511,20 @@ fn a_resume_behind_a_link_that_stops_at_a_full_buffer_survives_its_own_plunge() 
 
 #[test]
 fn a_stall_holds_and_says_where_to_resume() {
-    // Issue 21, case 4: the simulator frozen (SIGSTOP) for 5 s under a 2 s stall timeout.
-    let mut bench = Bench::new();
+    // Issue 21, case 4: the simulator frozen (SIGSTOP) for 5 s under a 2 s stall timeout,
+    // once the bridge's reports show the cut past the lead-in's plunge (a line planned at
+    // 30 s, which the watchdog would rightly allow its time while it may be running).
+    let mut bench = Bench::with(None, &[OsStr::new("--time-scale"), OsStr::new("10")]);
     let sim_pid = bench.sim.as_ref().unwrap().0.id().to_string();
     let child = bench.stream(&[OsStr::new("--stall-timeout"), OsStr::new("2")]);
-    bench.wait_cutting(500);
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !read_events(&bench.log)
+        .iter()
+        .any(|e| e["event"] == "status" && e["line"].as_u64().is_some_and(|n| n > 50))
+    {
+        assert!(Instant::now() < deadline, "no report of the cut");
+        std::thread::sleep(Duration::from_millis(20));
+    }
     let kill = |sig: &str| {
         assert!(Command::new("kill")
             .args([sig, &sim_pid])
