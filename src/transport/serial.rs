@@ -26,8 +26,13 @@
 //!   carries the reason and the streamer's [`ResumePoint`]. This is a result, not an
 //!   error: the controller is in a known state and the caller decides what next.
 //! - **Timed out**: with [`StreamOptions::no_progress_timeout`], a controller that says
-//!   nothing new for that long (no answer, no change of state or position) gets a feed hold
-//!   (`!`, which stops motion without losing position, unlike a reset) and the run reports.
+//!   nothing new for that long (no answer, no change of state or position) beyond the
+//!   planned time of the longest move it may be working through (the program lines not
+//!   known to have run, [`StreamOptions::line_durations`]; the resume preamble's plunge,
+//!   [`StreamOptions::approach_seconds`]) gets a feed hold (`!`, which stops motion without
+//!   losing position, unlike a reset) and the run ends saying where to resume, as every
+//!   other end does ([`Streamer::resume_point_now`]: the controller may have run any line
+//!   sent).
 //!   A hold (the caller's, or the controller in `Hold`, `Door` or `Tool`: the streamer's
 //!   [`Streamer::is_held`]) is not a stall: the clock restarts while it lasts.
 //! - **Interrupted**: the caller's [`Command::Stop`] (a signal, a console's stop button):

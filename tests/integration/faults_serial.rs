@@ -476,12 +476,14 @@ fn the_link_use_figure_never_passes_the_whole_link() {
 
 #[test]
 fn a_resume_behind_a_link_that_stops_at_a_full_buffer_survives_its_own_plunge() {
-    // Issue 21, case 9: a link that delivers no byte while the receive buffer is full
-    // (grblHAL's simulator build; `--rx-backpressure 0`), the short job. The resume's
-    // radial plunge at the program's plunge feed takes seconds, during which the planner
-    // is full and no line is read: a bridge that fills the buffer to the last byte gets no
-    // status report for the whole plunge, and its watchdog gave up on it. At 10 times real
-    // time and a 2 s stall timeout the plunge lasts longer than the timeout whatever the
+    // Issue 21, case 9: a link that delivers no byte, real-time ones included, to a nearly
+    // full receive buffer (grblHAL's own simulator reads its UART only while more than 100
+    // bytes are free, `mcu.c`: `--rx-backpressure 100`), the short job. The resume's radial
+    // plunge at the program's plunge feed takes seconds, during which the planner is full
+    // and no line is read: a bridge that fills the buffer to the last byte (all but the
+    // line the controller waits on, a few dozen bytes) gets no status report for the
+    // whole plunge, and its watchdog gave up on it. At 10 times real time and a 2 s stall
+    // timeout the plunge (30 s of the machine's time) outlasts the timeout whatever the
     // host's speed (a slower host only lengthens it in wall time).
     let mut bench = Bench::with(
         Some(1.0),
@@ -489,7 +491,7 @@ fn a_resume_behind_a_link_that_stops_at_a_full_buffer_survives_its_own_plunge() 
             OsStr::new("--time-scale"),
             OsStr::new("10"),
             OsStr::new("--rx-backpressure"),
-            OsStr::new("0"),
+            OsStr::new("100"),
         ],
     );
     let stall = [OsStr::new("--stall-timeout"), OsStr::new("2")];

@@ -101,9 +101,13 @@
 //! [`Streamer::interrupt`] is how a bridge that must go away (a signal, a lost console)
 //! leaves the machine: a feed hold, no line sent after it, and the stream stopped with
 //! [`StopReason::Interrupted`]. The machine decelerates along the path and holds; the
-//! transport keeps polling until [`Streamer::is_standing`] (a report of `Hold:0`, `Idle`
-//! or `Alarm` taken after the hold), so the run ends with the machine at rest and the
-//! resume point read from the report that shows it there (`Ln:` of the held block).
+//! transport keeps polling until [`Streamer::is_standing`] (a report of `Hold:0` or
+//! `Alarm` taken after the hold, or `Idle` with nothing left: every line answered, the
+//! buffers empty in `Bf:`, and `Idle` in the report before too), so the run ends with the
+//! machine at rest and the resume point read from the report that shows it there (`Ln:`
+//! of the held block). One `Idle` is no proof: a controller starved between moves reports
+//! it for a moment while lines are still on their way, and runs them. A report of `Run`, or
+//! such an `Idle`, after the hold means the hold did not take, and it goes out again.
 //!
 //! # Connecting: the state before the first line
 //!
@@ -545,7 +549,8 @@ impl Streamer {
     }
 
     /// After [`Streamer::interrupt`]: a status report since showed the machine at rest
-    /// (`Hold:0`, the hold complete; `Idle`; or `Alarm`, stopped by the controller).
+    /// (`Hold:0`, the hold complete; `Alarm`, stopped by the controller; or `Idle` with
+    /// nothing left, see [the module docs](self#interrupting)).
     pub fn is_standing(&self) -> bool {
         self.interrupted && self.standing
     }
