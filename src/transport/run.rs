@@ -24,6 +24,7 @@ use crate::post::modbus::{segment_moves, segments, SegmentError};
 use crate::post::setpoints::SampleConfig;
 use crate::program::limits::{check_limits, LimitError};
 use crate::program::reentry::{approach, ReentryError};
+use crate::program::timing::move_seconds;
 use crate::program::{Move, Program};
 use crate::protocol::canopen::session::{SessionConfig, StopReason};
 use crate::protocol::grbl::{ResumePoint, StreamerConfig};
@@ -420,7 +421,7 @@ pub async fn stream(
                 };
                 // The watchdog allows a move its planned time: the approach's longest move
                 // (a plunge at the plunge feed) or the preamble's spin-up dwell.
-                let approach_seconds = serial::move_seconds(
+                let approach_seconds = move_seconds(
                     &Program {
                         moves: approach.clone(),
                     },

@@ -65,10 +65,10 @@ use tracing::Instrument;
 use super::control::{Command, Commands, Request};
 use super::progress::{Progress, ProgressFn, Unit};
 use super::run::{check_program, PreflightError};
-use crate::config::machine::{Axis, MachineProfile};
+use crate::config::machine::MachineProfile;
 use crate::log::{self, ExecLog, LogError};
-use crate::program::timing::MoveTime;
-use crate::program::{Move, Position, Program};
+use crate::program::timing::move_seconds;
+use crate::program::{Move, Program};
 use crate::protocol::grbl::{
     self, Event, LineRef, MachineState, ResumePoint, Status, StopReason, Streamer, StreamerConfig,
 };
@@ -363,7 +363,8 @@ pub fn link_utilization(bytes: u64, baud: u32, time: Duration) -> Option<f64> {
 
 /// Planned seconds of each of `lines` (0-based) from the moves `program` reads them as,
 /// `move_lines` giving each move's file line (1-based), on `machine`
-/// ([`MoveTime::planned`]; a line that moves nothing takes 0).
+/// ([`MoveTime::planned`](crate::program::timing::MoveTime::planned); a line that moves
+/// nothing takes 0).
 pub fn line_seconds(
     lines: usize,
     program: &Program,
@@ -380,25 +381,6 @@ pub fn line_seconds(
         }
     }
     seconds
-}
-
-/// Planned seconds of each move of `program` on `machine`, with its index.
-pub fn move_seconds(program: &Program, machine: &MachineProfile) -> Vec<(usize, f64)> {
-    let max_rate = Axis::ALL.map(|axis| machine.max_rate(axis));
-    program
-        .steps(Position::UNKNOWN)
-        .filter_map(|step| {
-            let delta: [f64; 3] = std::array::from_fn(|slot| {
-                let axis = Axis::ALL[slot];
-                match (step.from.get(axis), step.to.get(axis)) {
-                    (Some(a), Some(b)) => b - a,
-                    _ => 0.0,
-                }
-            });
-            let time = MoveTime::of(step.action, delta, machine.dialect, max_rate)?;
-            Some((step.index, time.planned() * 60.0))
-        })
-        .collect()
 }
 
 /// Opens the serial port at `path` (8N1, no flow control, as grbl expects) and streams

@@ -28,10 +28,10 @@
 //! buffer is full, and a `?` or a `!` then waits behind the lines until one is read: a
 //! controller in a long move answers nothing and cannot be held. So the streamer keeps an
 //! eighth of a grblHAL buffer free while any line is in flight ([`rx_reserve`]: 128 of
-//! 1024 bytes; none of an AVR's 128, whose interrupt sees every byte). What it costs: the lines waiting in the
-//! buffer beyond the planner, 895 bytes instead of 1023 on grblHAL, about 30 lines of the
-//! planner's 100 blocks more; at 115 200 baud 78 ms of link time instead of 89 ms, still
-//! more than the 17–60 ms the firmware takes to answer, so the link stays as busy.
+//! 1024 bytes; none of an AVR's 128, whose interrupt sees every byte). What it costs: the
+//! lines waiting in the buffer behind the planner's blocks come to 895 bytes instead of
+//! 1023, at 115 200 baud 78 ms of link time instead of 89 ms, still many times the 17–60
+//! ms grblHAL's simulator takes to answer a line, so the link stays as busy.
 //!
 //! Lines are sent with `\n` only: grbl 1.1 answers `\r` and `\n` each as a line end, so
 //! `\r\n` would draw two answers for one line and break the pairing.
@@ -996,7 +996,7 @@ impl Streamer {
                 && !self.realtime.contains(&realtime::FEED_HOLD)
             {
                 // A hold the controller has not taken (one that came while it stood idle
-                // between starved moves): the lines in its buffer would run. Again.
+                // between starved moves) would let the lines in its buffer run: again.
                 self.realtime.push(realtime::FEED_HOLD);
             }
         }
@@ -1057,7 +1057,7 @@ impl Streamer {
     /// the buffer holds or any report showed free), and the report before it `Idle` too. One
     /// `Idle` alone may be a controller starved between two moves, with more lines on their
     /// way to it.
-    fn idle_with_nothing_left(&mut self, status: &Status) -> bool {
+    fn idle_with_nothing_left(&self, status: &Status) -> bool {
         let previous_idle = self
             .last_status
             .as_ref()
