@@ -67,7 +67,7 @@
 //!
 //! sim.receive(b"?");
 //! let report = String::from_utf8(sim.take_output()).unwrap();
-//! assert!(report.starts_with("<Idle|MPos:0.000,0.000,30.000,0.000|Bf:35,1023|"));
+//! assert!(report.starts_with("<Idle|MPos:0.000,0.000,30.000,0.000|Bf:100,1023|"));
 //! ```
 
 pub mod canopen;

@@ -99,6 +99,12 @@ struct Cli {
     /// Receive buffer size in bytes (grblHAL 1024; 128 like an AVR grbl), 128 to 65536.
     #[arg(long, allow_hyphen_values = true, default_value_t = 1024, value_parser = rx)]
     rx: usize,
+    /// Model a link that stops at a nearly full receive buffer: no byte, real-time ones
+    /// included, is delivered while FREE bytes of it or fewer are free (grblHAL's own
+    /// Simulator: 100; 0: only when full), so a status request or a feed hold waits behind
+    /// the lines. Default: a receive interrupt that sees every byte at once.
+    #[arg(long, value_name = "FREE")]
+    rx_backpressure: Option<usize>,
     /// The job whose groove the machine cuts: the Δ guard measures the executed motion
     /// against it and raises ALARM:64 as soon as the profile error exceeds Δ.
     #[arg(long)]
@@ -199,8 +205,16 @@ async fn run(cli: Cli) -> Result<()> {
     if let Some(link) = &cli.can_slcan {
         return serve_can(&cli, &profile, guard, link, idle_exit, &mut event_log).await;
     }
+    if let Some(reserve) = cli.rx_backpressure {
+        anyhow::ensure!(
+            reserve + 1 < cli.rx,
+            "--rx-backpressure {reserve}: must be below the receive buffer's {} bytes less one",
+            cli.rx
+        );
+    }
     let options = ControllerOptions {
         rx_buffer_size: cli.rx,
+        rx_backpressure: cli.rx_backpressure,
         ..ControllerOptions::default()
     };
     let machine = whirl::judge::simulator::machine(&profile);

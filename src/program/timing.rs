@@ -92,21 +92,31 @@ impl MoveTime {
 /// puts it. Meaningful for programs that pass
 /// [`check_limits`](super::limits::check_limits).
 pub fn cycle_time_s(program: &Program, profile: &MachineProfile) -> f64 {
+    move_seconds(program, profile)
+        .into_iter()
+        .map(|(_, seconds)| seconds)
+        .sum()
+}
+
+/// Each move's [`MoveTime::planned`] in seconds, with its index in the program; moves that
+/// do not move the machine are left out. The same lower bound as [`cycle_time_s`], move by
+/// move: what a stream's watchdog allows a move it may be waiting on.
+pub fn move_seconds(program: &Program, profile: &MachineProfile) -> Vec<(usize, f64)> {
     let max_rate = Axis::ALL.map(|axis| profile.max_rate(axis));
-    let mut minutes = 0.0;
-    for step in program.steps(Position::UNKNOWN) {
-        let delta: [f64; 3] = std::array::from_fn(|slot| {
-            let axis = Axis::ALL[slot];
-            match (step.from.get(axis), step.to.get(axis)) {
-                (Some(a), Some(b)) => b - a,
-                _ => 0.0,
-            }
-        });
-        if let Some(time) = MoveTime::of(step.action, delta, profile.dialect, max_rate) {
-            minutes += time.planned();
-        }
-    }
-    minutes * 60.0
+    program
+        .steps(Position::UNKNOWN)
+        .filter_map(|step| {
+            let delta: [f64; 3] = std::array::from_fn(|slot| {
+                let axis = Axis::ALL[slot];
+                match (step.from.get(axis), step.to.get(axis)) {
+                    (Some(a), Some(b)) => b - a,
+                    _ => 0.0,
+                }
+            });
+            let time = MoveTime::of(step.action, delta, profile.dialect, max_rate)?;
+            Some((step.index, time.planned() * 60.0))
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -15,7 +15,7 @@ use super::link::Link;
 use super::linuxcnc::{run_linuxcnc, LinuxcncError, LinuxcncOptions, LinuxcncOutcome};
 use super::modbus::{stream_modbus, ModbusError, ModbusOptions, ModbusOutcome};
 use super::progress::{MoveLines, ProgressFn};
-use super::serial::{stream_port, SerialError, StreamOptions, StreamOutcome};
+use super::serial::{self, stream_port, SerialError, StreamOptions, StreamOutcome};
 use crate::config::connection::SettingError;
 use crate::config::machine::MachineProfile;
 use crate::log::ExecLog;
@@ -24,6 +24,7 @@ use crate::post::modbus::{segment_moves, segments, SegmentError};
 use crate::post::setpoints::SampleConfig;
 use crate::program::limits::{check_limits, LimitError};
 use crate::program::reentry::{approach, ReentryError};
+use crate::program::timing::move_seconds;
 use crate::program::{Move, Program};
 use crate::protocol::canopen::session::{SessionConfig, StopReason};
 use crate::protocol::grbl::{ResumePoint, StreamerConfig};
@@ -411,13 +412,32 @@ pub async fn stream(
     let result: Result<Outcome, StreamError> = async {
         Ok(match link {
             Link::Serial { port, baud } => {
+                let streamer = StreamerConfig {
+                    check_state: true,
+                    unlock: options.unlock,
+                    ..StreamerConfig::default()
+                };
+                // The watchdog allows a move its planned time: the approach's longest move
+                // (a plunge at the plunge feed) or the preamble's spin-up dwell.
+                let approach_seconds = move_seconds(
+                    &Program {
+                        moves: approach.clone(),
+                    },
+                    machine,
+                )
+                .into_iter()
+                .map(|(_, seconds)| seconds)
+                .fold(streamer.spin_up_dwell_s, f64::max);
                 let options = StreamOptions {
                     program: name,
-                    streamer: StreamerConfig {
-                        check_state: true,
-                        unlock: options.unlock,
-                        ..StreamerConfig::default()
-                    },
+                    streamer,
+                    line_durations: Some(serial::line_seconds(
+                        posted.lines.len(),
+                        &posted.program,
+                        &posted.move_lines,
+                        machine,
+                    )),
+                    approach_seconds,
                     no_progress_timeout: options.stall_timeout,
                     resume_at: options.resume_at,
                     approach,

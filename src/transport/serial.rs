@@ -26,8 +26,13 @@
 //!   carries the reason and the streamer's [`ResumePoint`]. This is a result, not an
 //!   error: the controller is in a known state and the caller decides what next.
 //! - **Timed out**: with [`StreamOptions::no_progress_timeout`], a controller that says
-//!   nothing new for that long (no answer, no change of state or position) gets a feed hold
-//!   (`!`, which stops motion without losing position, unlike a reset) and the run reports.
+//!   nothing new for that long (no answer, no change of state or position) beyond the
+//!   planned time of the longest move it may be working through (the program lines not
+//!   known to have run, [`StreamOptions::line_durations`]; the resume preamble's plunge,
+//!   [`StreamOptions::approach_seconds`]) gets a feed hold (`!`, which stops motion without
+//!   losing position, unlike a reset) and the run ends saying where to resume, as every
+//!   other end does ([`Streamer::resume_point_now`]: the controller may have run any line
+//!   sent).
 //!   A hold (the caller's, or the controller in `Hold`, `Door` or `Tool`: the streamer's
 //!   [`Streamer::is_held`]) is not a stall: the clock restarts while it lasts.
 //! - **Interrupted**: the caller's [`Command::Stop`] (a signal, a console's stop button):
@@ -62,7 +67,8 @@ use super::progress::{Progress, ProgressFn, Unit};
 use super::run::{check_program, PreflightError};
 use crate::config::machine::MachineProfile;
 use crate::log::{self, ExecLog, LogError};
-use crate::program::Move;
+use crate::program::timing::move_seconds;
+use crate::program::{Move, Program};
 use crate::protocol::grbl::{
     self, Event, LineRef, MachineState, ResumePoint, Status, StopReason, Streamer, StreamerConfig,
 };
@@ -136,8 +142,13 @@ pub struct StreamOptions {
     /// Check the program against this machine's travel and speeds before the first byte
     /// goes out ([`check_program`]); `None`: the caller has checked it.
     pub machine: Option<MachineProfile>,
-    /// Planned seconds of each program line, for the progress ETA.
+    /// Planned seconds of each program line ([`line_seconds`]), for the progress ETA and
+    /// the no-progress watchdog, which allows the longest line in flight its planned time.
     pub line_durations: Option<Vec<f64>>,
+    /// With `approach`: the planned seconds of its longest move (a re-entry's plunge at the
+    /// program's plunge feed) or of the preamble's spin-up dwell, which the watchdog allows
+    /// while the preamble may still be running.
+    pub approach_seconds: f64,
     /// The caller's hold, resume and abort while streaming: a feed hold, a cycle start
     /// and a soft reset, each a real-time byte sent at once, ahead of any line.
     pub commands: Option<Commands>,
@@ -161,6 +172,7 @@ impl Default for StreamOptions {
             axes: StatusAxes::default(),
             machine: None,
             line_durations: None,
+            approach_seconds: 0.0,
             commands: None,
             on_progress: None,
         }
@@ -185,6 +197,7 @@ impl fmt::Debug for StreamOptions {
                 "line_durations",
                 &self.line_durations.as_ref().map(Vec::len),
             )
+            .field("approach_seconds", &self.approach_seconds)
             .field("commands", &self.commands.is_some())
             .field("on_progress", &self.on_progress.is_some())
             .finish()
@@ -202,6 +215,9 @@ pub enum Ending {
     TimedOut {
         /// The configured timeout.
         after: Duration,
+        /// The planned time of the longest move the controller may have been working
+        /// through, which the wait allowed on top of the timeout.
+        planned: Duration,
     },
 }
 
@@ -210,11 +226,21 @@ impl fmt::Display for Ending {
         match self {
             Ending::Completed => write!(f, "completed"),
             Ending::Stopped(reason) => write!(f, "stopped: {reason}"),
-            Ending::TimedOut { after } => write!(
-                f,
-                "nothing new from the controller for {:.0} s: feed hold sent",
-                after.as_secs_f64()
-            ),
+            Ending::TimedOut { after, planned } => {
+                write!(
+                    f,
+                    "stalled: nothing new from the controller for {:.0} s",
+                    after.as_secs_f64()
+                )?;
+                if !planned.is_zero() {
+                    write!(
+                        f,
+                        " beyond the {:.1} s its longest move in flight is planned to take",
+                        planned.as_secs_f64()
+                    )?;
+                }
+                write!(f, ": feed hold sent")
+            }
         }
     }
 }
@@ -226,9 +252,9 @@ pub struct StreamOutcome {
     pub ending: Ending,
     /// The program line (0-based) the controller refused, if that is why it stopped.
     pub failed_line: Option<usize>,
-    /// Where to resume, after a stop ([`Streamer::resume_point`]); `None` when completed
-    /// or timed out (a held controller has not discarded anything: the caller can resume
-    /// the motion with `~`, or reset and then knows nothing more than the acks).
+    /// Where to resume, after a stop ([`Streamer::resume_point`]) or a stall (the first
+    /// line not known to have executed, every line sent from there on possibly run:
+    /// [`Streamer::resume_point_now`]); `None` when completed.
     pub resume: Option<ResumePoint>,
     /// Program lines.
     pub lines_total: usize,
@@ -335,6 +361,28 @@ pub fn link_utilization(bytes: u64, baud: u32, time: Duration) -> Option<f64> {
     Some(bytes as f64 * 10.0 / capacity).filter(|&share| capacity > 0.0 && share <= 1.0)
 }
 
+/// Planned seconds of each of `lines` (0-based) from the moves `program` reads them as,
+/// `move_lines` giving each move's file line (1-based), on `machine`
+/// ([`MoveTime::planned`](crate::program::timing::MoveTime::planned); a line that moves
+/// nothing takes 0).
+pub fn line_seconds(
+    lines: usize,
+    program: &Program,
+    move_lines: &[usize],
+    machine: &MachineProfile,
+) -> Vec<f64> {
+    let mut seconds = vec![0.0; lines];
+    for (step, time) in move_seconds(program, machine) {
+        if let Some(slot) = move_lines
+            .get(step)
+            .and_then(|&line| seconds.get_mut(line.wrapping_sub(1)))
+        {
+            *slot += time;
+        }
+    }
+    seconds
+}
+
 /// Opens the serial port at `path` (8N1, no flow control, as grbl expects) and streams
 /// `lines` over it with [`stream`]. The machine check, if asked for, runs before the port
 /// is opened: opening resets some boards (an Arduino running grbl), so a program that
@@ -409,6 +457,7 @@ pub async fn stream<P: AsyncRead + AsyncWrite + Unpin>(
         timeout: options.no_progress_timeout,
         axes: options.axes,
         durations: options.line_durations.take(),
+        approach_seconds: options.approach_seconds,
         on_progress: options.on_progress.take(),
         baud: options.baud,
         port: options.port_name.clone(),
@@ -448,6 +497,7 @@ struct Run<'a> {
     timeout: Option<Duration>,
     axes: StatusAxes,
     durations: Option<Vec<f64>>,
+    approach_seconds: f64,
     on_progress: Option<ProgressFn>,
     baud: Option<u32>,
     sent: usize,
@@ -498,6 +548,36 @@ impl Run<'_> {
         }
     }
 
+    /// Where a run that ended so resumes: after a stop, the streamer's resume point; after
+    /// a stall, where it would be if the run ended now (the controller, held but not known
+    /// to stand, may have run any line sent); none after a completed run.
+    fn resume(&self, ending: &Ending) -> Option<ResumePoint> {
+        match ending {
+            Ending::Completed => None,
+            Ending::Stopped(_) => self.streamer.resume_point(),
+            Ending::TimedOut { .. } => Some(self.streamer.resume_point_now()),
+        }
+    }
+
+    /// The longest a controller working through what it was sent may rightly say nothing
+    /// new: the planned time of the longest program line not known to have run, or, while
+    /// the resume preamble may still be running, of its longest move or dwell. A 33 s
+    /// plunge is not a stall.
+    fn planned_in_flight(&self) -> Duration {
+        let lines = self.durations.as_ref().map_or(0.0, |durations| {
+            self.streamer
+                .lines_in_flight()
+                .filter_map(|i| durations.get(i).copied())
+                .fold(0.0, f64::max)
+        });
+        let preamble = if self.streamer.preamble_may_be_running() {
+            self.approach_seconds
+        } else {
+            0.0
+        };
+        Duration::try_from_secs_f64(lines.max(preamble)).unwrap_or_default()
+    }
+
     /// Logs where a run that did not complete resumes, if it is known.
     fn log_resume(&mut self, resume: Option<&ResumePoint>) {
         let Some(resume) = resume else {
@@ -540,15 +620,10 @@ impl Run<'_> {
                 let reason = match &ending {
                     Ending::Completed => None,
                     Ending::Stopped(reason) => Some(reason.to_string()),
-                    Ending::TimedOut { after } => Some(format!(
-                        "no progress for {} s: feed hold sent",
-                        after.as_secs_f64()
-                    )),
+                    Ending::TimedOut { .. } => Some(ending.to_string()),
                 };
                 tracing::debug!(?ending, "stream ended");
-                if ending != Ending::Completed {
-                    self.log_resume(self.streamer.resume_point().as_ref());
-                }
+                self.log_resume(self.resume(&ending).as_ref());
                 self.write_log(log::Event::End {
                     completed: ending == Ending::Completed,
                     reason,
@@ -556,7 +631,7 @@ impl Run<'_> {
                 match self.log_failure.take() {
                     Some(error) => Err(SerialError::Log {
                         error,
-                        resume: self.streamer.resume_point(),
+                        resume: self.resume(&ending),
                     }),
                     None => Ok(self.outcome(ending)),
                 }
@@ -606,9 +681,10 @@ impl Run<'_> {
                 self.write_final(writer, out).await?;
                 return Ok(ending);
             }
-            let deadline = self
-                .stand_by
-                .or(self.timeout.map(|timeout| last_progress + timeout));
+            let planned = self.planned_in_flight();
+            let deadline = self.stand_by.or(self
+                .timeout
+                .map(|timeout| last_progress + timeout + planned));
             tokio::select! {
                 written = writer.write(out), if !out.is_empty() => {
                     let n = written.map_err(|e| self.io_error(e))?;
@@ -648,14 +724,18 @@ impl Run<'_> {
                         continue;
                     }
                     let after = self.timeout.unwrap_or_default();
-                    tracing::warn!(seconds = after.as_secs_f64(), "no progress: feed hold");
+                    tracing::warn!(
+                        seconds = after.as_secs_f64(),
+                        planned = planned.as_secs_f64(),
+                        "no progress: feed hold"
+                    );
                     self.streamer.feed_hold();
                     if let Some(bytes) = self.streamer.transmit() {
                         out.extend_from_slice(&bytes);
                     }
                     self.drain_events();
                     self.write_final(writer, out).await?;
-                    return Ok(Ending::TimedOut { after });
+                    return Ok(Ending::TimedOut { after, planned });
                 }
             }
         }
@@ -994,7 +1074,7 @@ impl Run<'_> {
         };
         StreamOutcome {
             failed_line,
-            resume: self.streamer.resume_point(),
+            resume: self.resume(&ending),
             lines_total: self.lines.len(),
             lines_sent: self.sent,
             lines_acked: self.acked,

@@ -25,8 +25,28 @@ struct Bench {
 
 impl Bench {
     fn new() -> Bench {
+        Bench::with(None, &[OsStr::new("--time-scale"), OsStr::new("0")])
+    }
+
+    /// The double-start example, its groove `length` mm long if given (as issue 21's
+    /// short job), planned and served by a simulator started with `sim_args`.
+    fn with(length: Option<f64>, sim_args: &[&OsStr]) -> Bench {
         let dir = tempfile::tempdir().unwrap();
-        let job = util::example("double-start");
+        let example = util::example("double-start");
+        let job = match length {
+            None => example,
+            Some(length) => {
+                let folder = example.parent().unwrap();
+                std::fs::copy(folder.join("profile.csv"), dir.path().join("profile.csv")).unwrap();
+                let text = std::fs::read_to_string(&example).unwrap();
+                let at = text.find("length = ").expect("the groove's length");
+                let end = at + text[at..].find('#').unwrap();
+                let text = format!("{}length = {length} {}", &text[..at], &text[end..]);
+                let job = dir.path().join("job.toml");
+                std::fs::write(&job, text).unwrap();
+                job
+            }
+        };
         let program = dir.path().join("job.nc");
         let o = util::whirl(&[
             OsStr::new("plan"),
@@ -37,18 +57,17 @@ impl Bench {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let link = dir.path().join("grbl");
         let sim_log = dir.path().join("sim.jsonl");
-        let sim = Sim::serving(
-            OsStr::new("--pty"),
-            &link,
+        let args = [
+            sim_args,
             &[
-                OsStr::new("--time-scale"),
-                OsStr::new("0"),
                 OsStr::new("--job"),
                 job.as_os_str(),
                 OsStr::new("--log"),
                 sim_log.as_os_str(),
             ],
-        );
+        ]
+        .concat();
+        let sim = Sim::serving(OsStr::new("--pty"), &link, &args);
         let log = dir.path().join("exec.jsonl");
         Bench {
             _dir: dir,
@@ -474,4 +493,125 @@ fn no_link_use_figure_is_given_for_a_pseudo_terminal() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(stdout.contains("23 of 23 lines acknowledged"), "{stdout}");
     assert!(!stdout.contains("% busy"), "{stdout}");
+}
+
+#[test]
+fn a_resume_behind_a_link_that_stops_at_a_full_buffer_survives_its_own_plunge() {
+    // Issue 21, case 9: a link that delivers no byte, real-time ones included, to a nearly
+    // full receive buffer (grblHAL's own simulator reads its UART only while more than 100
+    // bytes are free, `mcu.c`: `--rx-backpressure 100`), the short job. The resume's radial
+    // plunge at the program's plunge feed takes seconds, during which the planner is full
+    // and no line is read: a bridge that fills the buffer to the last byte (all but the
+    // line the controller waits on, a few dozen bytes) gets no status report for the
+    // whole plunge, and its watchdog gave up on it. At 10 times real time and a 2 s stall
+    // timeout the plunge (30 s of the machine's time) outlasts the timeout whatever the
+    // host's speed (a slower host only lengthens it in wall time).
+    let mut bench = Bench::with(
+        Some(1.0),
+        &[
+            OsStr::new("--time-scale"),
+            OsStr::new("10"),
+            OsStr::new("--rx-backpressure"),
+            OsStr::new("100"),
+        ],
+    );
+    let stall = [OsStr::new("--stall-timeout"), OsStr::new("2")];
+    let child = bench.stream(&stall);
+    bench.wait_cutting(150);
+    signal(&child, "INT");
+    let o = finish(child);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("interrupted (SIGINT)"), "{stderr}");
+    let line = resume_line(&stderr);
+    let after = read_events(&bench.sim_log).len();
+    let at = line.to_string();
+    let resume = [&stall[..], &[OsStr::new("--resume-at"), OsStr::new(&at)]].concat();
+    let o = finish(bench.stream(&resume));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_resumed_along_the_groove(&bench, after, line);
+    drop(bench.sim.take());
+}
+
+#[test]
+fn a_stall_holds_and_says_where_to_resume() {
+    // Issue 21, case 4: the simulator frozen (SIGSTOP) for 5 s under a 2 s stall timeout,
+    // once the bridge's reports show the cut past the lead-in's plunge (a line planned at
+    // 30 s, which the watchdog would rightly allow its time while it may be running).
+    let mut bench = Bench::with(None, &[OsStr::new("--time-scale"), OsStr::new("10")]);
+    let sim_pid = bench.sim.as_ref().unwrap().0.id().to_string();
+    let child = bench.stream(&[OsStr::new("--stall-timeout"), OsStr::new("2")]);
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !read_events(&bench.log)
+        .iter()
+        .any(|e| e["event"] == "status" && e["line"].as_u64().is_some_and(|n| n > 50))
+    {
+        assert!(Instant::now() < deadline, "no report of the cut");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let kill = |sig: &str| {
+        assert!(Command::new("kill")
+            .args([sig, &sim_pid])
+            .status()
+            .unwrap()
+            .success());
+    };
+    kill("-STOP");
+    let deadline = Instant::now() + Duration::from_secs(5);
+    let mut child = child;
+    while Instant::now() < deadline && child.try_wait().unwrap().is_none() {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    kill("-CONT");
+    let o = finish(child);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("the stream stalled: nothing new from the controller for 2 s"),
+        "{stderr}"
+    );
+    let line = resume_line(&stderr);
+    assert_log_ends_with_resume(&bench, line, "stalled");
+    drop(bench.sim.take());
+}
+
+#[test]
+fn a_momentary_idle_between_starved_moves_does_not_end_a_stop() {
+    // Issue 21, case 10: a controller starved between moves reports Idle for a moment
+    // while lines are still on their way to it. At 300 baud a line takes a second of the
+    // machine's time to arrive and a groove move a fraction of one, so the machine stands
+    // idle between most moves, and the lines and status requests in flight queue for
+    // seconds on the link: a `?` sent before the Ctrl-C is answered after it, often Idle.
+    // A bridge that takes that for a machine at rest leaves while the lines behind it run.
+    let bench = Bench::with(
+        Some(1.0),
+        &[
+            OsStr::new("--time-scale"),
+            OsStr::new("10"),
+            OsStr::new("--baud"),
+            OsStr::new("300"),
+        ],
+    );
+    let child = bench.stream(&[]);
+    bench.wait_cutting(40);
+    signal(&child, "INT");
+    let o = finish(child);
+    let left = wall();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("interrupted (SIGINT)"), "{stderr}");
+    resume_line(&stderr);
+    // The machine stood when the bridge left, and nothing ran after: the link's backlog
+    // (at most a receive buffer, 1023 bytes, 34 s of the machine's time, 3.4 s of wall time
+    // at 10 times real time) would have arrived well within the 6 s waited here.
+    std::thread::sleep(Duration::from_secs(6));
+    let moved_after: Vec<(f64, Value)> = states(&bench)
+        .into_iter()
+        .filter(|(t, s)| *t > left && *s == "Run")
+        .collect();
+    assert!(moved_after.is_empty(), "{moved_after:?}");
+    let executed_after = bench
+        .sim_events("executed")
+        .into_iter()
+        .filter(|e| e["wall_s"].as_f64().unwrap() > left)
+        .count();
+    assert_eq!(executed_after, 0);
 }

@@ -80,7 +80,7 @@ fn soft_limit_at_rest_alarms_at_once() {
 
 #[test]
 fn soft_reset_in_motion_alarms_3_and_clears_the_queue() {
-    let mut sim = new_sim();
+    let mut sim = sim_35();
     send(&mut sim, "G1 X50 F600\nG1 X60\nG1 X70\n");
     run(&mut sim, 1.0, 0.01);
     assert_eq!(sim.blocks_free(), 32);
@@ -96,7 +96,7 @@ fn soft_reset_in_motion_alarms_3_and_clears_the_queue() {
             "[MSG:'$H'|'$X' to unlock]"
         ]
     );
-    assert_eq!(sim.blocks_free(), 35);
+    assert_eq!(sim.blocks_free(), sim.options().planner_blocks);
     let stopped = sim.position();
     run(&mut sim, 2.0, 0.1);
     assert_eq!(sim.position(), stopped);

@@ -108,7 +108,7 @@ fn the_complete_report_carries_every_field() {
 
 #[test]
 fn the_status_report_mask_and_inches_shape_the_report() {
-    let mut sim = new_sim();
+    let mut sim = sim_35();
     optional(&mut sim);
     send(&mut sim, "G92 X-1\n");
     // $10=0: WPos and no buffer, line, speed or offsets (settings.h reportmask_t).
@@ -499,4 +499,18 @@ fn the_error_and_alarm_texts_are_grblhals() {
             "{alarm:?}"
         );
     }
+}
+
+#[test]
+fn a_line_right_after_a_jog_cancel_runs() {
+    // grbl suspends the main loop after a jog cancel until the machine stands (the jog's
+    // cancel completes, then the state is Idle), so the line sent right after 0x85 is read
+    // in Idle and runs: `ok` on grblHAL, not the `error:9` of a line read while jogging.
+    let mut sim = new_sim();
+    send(&mut sim, "$J=G91 X100 F600\n");
+    run(&mut sim, 0.5, 0.001);
+    sim.receive(&[0x85]);
+    assert!(send(&mut sim, "G1 X20 F600\n").is_empty());
+    run(&mut sim, 0.1, 0.001);
+    assert_eq!(responses(&output(&mut sim)), ["ok"]);
 }

@@ -40,7 +40,7 @@ impl Guard for Fence {
 }
 
 fn fenced(x_max: f64, object_at_end: bool) -> Controller {
-    let mut sim = new_sim();
+    let mut sim = sim_35();
     sim.set_guard(Box::new(Fence {
         x_max,
         object_at_end,

@@ -55,6 +55,15 @@ pub(crate) fn new_sim() -> Controller {
     sim_with(ControllerOptions::default())
 }
 
+/// A controller with a planner of 35 blocks (`$398=35`, grblHAL's default for years), which
+/// the figures of the tests written for it count on.
+pub(crate) fn sim_35() -> Controller {
+    sim_with(ControllerOptions {
+        planner_blocks: 35,
+        ..ControllerOptions::default()
+    })
+}
+
 /// Sends text and returns what the controller printed, as lines.
 pub(crate) fn send(sim: &mut Controller, text: &str) -> Vec<String> {
     sim.receive(text.as_bytes());
@@ -92,7 +101,8 @@ pub(crate) fn run_until_idle(sim: &mut Controller, dt: f64, limit: f64) {
     let start = sim.now();
     loop {
         sim.advance(dt).expect("valid step");
-        let idle = sim.state() == crate::MachineState::Idle && sim.blocks_free() == 35;
+        let idle = sim.state() == crate::MachineState::Idle
+            && sim.blocks_free() == sim.options().planner_blocks;
         if idle || sim.now() - start > limit {
             break;
         }

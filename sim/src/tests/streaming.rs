@@ -225,7 +225,7 @@ fn realtime_status_mid_line_does_not_corrupt_it() {
 
 #[test]
 fn status_report_fields() {
-    let mut sim = new_sim();
+    let mut sim = sim_35();
     send(&mut sim, "M3 S3000\nN42 G1 X50 F600\n");
     sim.advance(1.0).unwrap();
     let report = send(&mut sim, "?").remove(0);
@@ -251,7 +251,7 @@ fn status_report_fields() {
 
 #[test]
 fn rx_bytes_leave_the_buffer_only_when_the_planner_takes_the_line() {
-    let mut sim = new_sim();
+    let mut sim = sim_35();
     // 35 blocks fill the planner, the 36th line waits in the parser for room.
     let program: String = (1..=36).map(|i| format!("G1 X{i} F60\n")).collect();
     sim.receive(program.as_bytes());
@@ -350,4 +350,94 @@ fn idle_feed_hold_is_hold_0_and_cycle_start_releases_it() {
     sim.receive(b"~");
     run_until_idle(&mut sim, 0.05, 10.0);
     assert_eq!(sim.position().x, 10.0);
+}
+
+/// A controller whose planner and RX buffer are filled by one slow move and as many
+/// 9-byte lines (`G1 X1.0\n` and the like) as fill the buffer up to `free` bytes free.
+fn filled(options: ControllerOptions, free: usize) -> Controller {
+    let mut sim = sim_with(options);
+    let blocks = sim.options().planner_blocks;
+    // One move of 10 mm at 1 mm/min runs for ten minutes: nothing leaves the planner.
+    let mut text = String::from("G1 X10 F1\n");
+    for i in 0..blocks {
+        text.push_str(&format!("X{}\n", 20 + i % 50));
+    }
+    sim.receive(text.as_bytes());
+    sim.take_output();
+    let fill = sim.rx_free() - free;
+    // Lines of `X1.5` padded with spaces to nine bytes, then the rest as one line.
+    let mut bytes = Vec::new();
+    while bytes.len() + 9 <= fill {
+        bytes.extend_from_slice(b"X1.5    \n");
+    }
+    bytes.resize(fill - 1, b' ');
+    bytes.push(b'\n');
+    sim.receive(&bytes);
+    assert_eq!(sim.rx_free(), free);
+    sim
+}
+
+#[test]
+fn a_link_with_backpressure_holds_real_time_bytes_behind_a_full_buffer() {
+    // The receive interrupt (grblHAL's UART drivers): `?` and `!` act at a full buffer.
+    let mut sim = filled(ControllerOptions::default(), 0);
+    let answer = send(&mut sim, "?");
+    assert!(answer[0].starts_with("<Run|"), "{answer:?}");
+    // grblHAL's Simulator (mcu.c reads the UART only with more than 100 bytes free): at
+    // 100 free a `?` and a `!` wait in the link; the machine runs on unheld.
+    let options = ControllerOptions {
+        rx_backpressure: Some(100),
+        ..ControllerOptions::default()
+    };
+    let mut sim = filled(options.clone(), 100);
+    assert!(send(&mut sim, "?!").is_empty());
+    run(&mut sim, 1.0, 0.01);
+    assert!(output(&mut sim).is_empty());
+    assert_eq!(sim.state(), MachineState::Run);
+    // With one byte more free the link delivers again: the report, then the hold.
+    let mut sim = filled(options.clone(), 101);
+    assert!(send(&mut sim, "?")[0].starts_with("<Run|"));
+    sim.receive(b"!");
+    assert!(matches!(sim.state(), MachineState::Hold { .. }));
+    // Held bytes wait in order and arrive as lines are read: the slow move ends after
+    // 600 s, the planner takes a line from the buffer, and the `?` behind it is answered.
+    let mut sim = filled(options, 100);
+    sim.receive(b"?");
+    run(&mut sim, 601.0, 0.5);
+    let printed = output(&mut sim);
+    assert!(
+        printed.iter().any(|l| l.starts_with("<Run|")),
+        "{printed:?}"
+    );
+    // A reserve that leaves no room is refused.
+    let bad = Controller::new(
+        &profile(),
+        ControllerOptions {
+            rx_buffer_size: 128,
+            rx_backpressure: Some(127),
+            ..ControllerOptions::default()
+        },
+    );
+    assert!(matches!(
+        bad,
+        Err(crate::ConfigError::Option {
+            name: "rx_backpressure",
+            ..
+        })
+    ));
+}
+
+#[test]
+fn the_planner_holds_grblhals_default_100_blocks() {
+    // grblHAL's config.h: DEFAULT_PLANNER_BUFFER_BLOCKS 100, shown by `$398`, `Bf:` and
+    // `[OPT:…,blocks,rx]`.
+    let mut sim = new_sim();
+    assert_eq!(send(&mut sim, "$398\n"), ["$398=100", "ok"]);
+    assert!(send(&mut sim, "?")[0].contains("|Bf:100,1023|"));
+    let info = send(&mut sim, "$I\n");
+    assert!(
+        info.iter()
+            .any(|l| l.starts_with("[OPT:") && l.ends_with(",100,1024,4,0]")),
+        "{info:?}"
+    );
 }

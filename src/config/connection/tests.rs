@@ -7,7 +7,7 @@ use std::time::Duration;
 use super::*;
 use crate::config::machine::{MachineProfile, ProfileError};
 
-/// The built-in simulated machine (grblHAL, max_line_length 256, X −5…160, Z ±300)
+/// The built-in simulated machine (grblHAL, max_line_length 255, X −5…160, Z ±300)
 /// with `connection` as its `[connection]` table (its `[drives]` tables as
 /// `[connection.drives]`).
 fn profile_text(connection: &str) -> String {
@@ -311,7 +311,7 @@ fn values_are_validated_and_errors_name_the_key() {
         (
             "transport = \"serial\"\nport = \"a\"\nrx_buffer = 128".into(),
             "connection.rx_buffer",
-            "at least 258",
+            "at least 257",
         ),
         // modbus-tcp
         (
@@ -540,7 +540,7 @@ fn values_are_validated_and_errors_name_the_key() {
     }
     // The edges that are allowed.
     for text in [
-        "transport = \"serial\"\nport = \"a\"\nrx_buffer = 258".to_owned(),
+        "transport = \"serial\"\nport = \"a\"\nrx_buffer = 257".to_owned(),
         "transport = \"modbus-tcp\"\naddress = \"plc-3.local:502\"\ntimeout_ms = 60000".to_owned(),
         "transport = \"modbus-tcp\"\naddress = \"[::1]:65535\"\nunit = 0".to_owned(),
         "transport = \"modbus-rtu\"\nport = \"a\"\nbaud = 1200\nunit = 247".to_owned(),

@@ -382,7 +382,7 @@ async fn eof_from_the_controller_is_an_error_naming_the_port() {
 }
 
 #[tokio::test(start_paused = true)]
-async fn a_silent_controller_times_out_with_a_feed_hold() {
+async fn a_silent_controller_times_out_with_a_feed_hold_and_a_resume_point() {
     let script = Script {
         hang_after: Some(3),
         ..Script::default()
@@ -396,19 +396,58 @@ async fn a_silent_controller_times_out_with_a_feed_hold() {
     assert_eq!(
         outcome.ending,
         Ending::TimedOut {
-            after: Duration::from_secs(5)
+            after: Duration::from_secs(5),
+            planned: Duration::ZERO,
         }
     );
     assert_eq!(outcome.lines_acked, 3);
-    assert!(outcome.resume.is_none());
     let wall = outcome.wall_time.as_secs_f64();
     assert!((5.0..5.5).contains(&wall), "{wall}");
     assert_eq!(run.fake.realtime.last(), Some(&b'!'));
+    // A stall ends like every other end: where to resume, in the outcome and the log,
+    // never past a line not known to have run.
+    let resume = outcome.resume.expect("a resume point");
+    assert!(resume.line_index <= 3, "{resume:?}");
+    let n = run.records.len();
+    assert!(matches!(
+        &run.records[n - 2].event,
+        log::Event::ResumeAt { line, .. } if *line == resume.line_index + 1
+    ));
     assert_start_and_end(&run.records, false);
     assert!(matches!(
         run.records.last().map(|r| &r.event),
-        Some(log::Event::End { reason: Some(reason), .. }) if reason.contains("no progress")
+        Some(log::Event::End { reason: Some(reason), .. })
+            if reason.starts_with("stalled: nothing new from the controller for 5 s")
     ));
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_long_move_in_flight_is_allowed_its_planned_time_before_a_stall() {
+    // The controller falls silent after three lines, with the fourth planned at 8 s in
+    // flight: silence is a stall only 5 s past those 8 s.
+    let script = Script {
+        hang_after: Some(3),
+        ..Script::default()
+    };
+    let mut durations = vec![0.1; 10];
+    durations[3] = 8.0;
+    let options = StreamOptions {
+        no_progress_timeout: Some(Duration::from_secs(5)),
+        line_durations: Some(durations),
+        ..options()
+    };
+    let run = run(moves(10), options, Fake::grblhal(1024), script).await;
+    let outcome = run.result.unwrap();
+    assert_eq!(
+        outcome.ending,
+        Ending::TimedOut {
+            after: Duration::from_secs(5),
+            planned: Duration::from_secs(8),
+        }
+    );
+    let wall = outcome.wall_time.as_secs_f64();
+    assert!((13.0..13.5).contains(&wall), "{wall}");
+    assert!(outcome.ending.to_string().contains("beyond the 8.0 s"));
 }
 
 #[tokio::test(start_paused = true)]

@@ -32,8 +32,17 @@ fn machine() -> Machine {
     }
 }
 
+/// A bank in front of a controller with a planner of 35 blocks (`$398=35`), which the
+/// figures of these tests count on.
 fn bank_on(machine: &Machine, options: BankOptions) -> Bank {
-    let controller = Controller::new(machine, ControllerOptions::default()).unwrap();
+    let controller = Controller::new(
+        machine,
+        ControllerOptions {
+            planner_blocks: 35,
+            ..ControllerOptions::default()
+        },
+    )
+    .unwrap();
     Bank::new(controller, options).unwrap()
 }
 

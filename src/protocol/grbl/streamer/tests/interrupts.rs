@@ -48,9 +48,8 @@ fn an_interrupt_holds_at_once_sends_no_line_after_and_waits_for_the_machine_to_s
 }
 
 #[test]
-fn an_idle_or_alarmed_machine_stands_too() {
+fn an_alarmed_machine_stands_a_running_one_is_held_again() {
     for (report, standing) in [
-        ("<Idle|MPos:0.000,0.000,0.000,0.000>\n", true),
         ("<Alarm|MPos:0.000,0.000,0.000,0.000>\n", true),
         ("<Run|MPos:0.000,0.000,0.000,0.000>\n", false),
     ] {
@@ -60,9 +59,60 @@ fn an_idle_or_alarmed_machine_stands_too() {
         streamer.receive(report.as_bytes());
         streamer.interrupt("stop");
         assert!(!streamer.is_standing(), "{report}");
+        assert_eq!(streamer.transmit(), Some(vec![b'!']));
         streamer.receive(report.as_bytes());
         assert_eq!(streamer.is_standing(), standing, "{report}");
+        // Still running after the hold: the hold did not take, and goes out again.
+        let again = (!standing).then(|| vec![b'!']);
+        assert_eq!(streamer.transmit(), again, "{report}");
     }
+}
+
+#[test]
+fn one_idle_report_is_not_a_standing_machine() {
+    // Issue 21: a controller starved between moves reported Idle for a moment while lines
+    // sent to it were still on their way; the bridge took it as standing and left, and the
+    // controller ran them. Standing needs every line answered, the planner and the receive
+    // buffer empty (`Bf:`) and Idle in more than one report.
+    let idle = "<Idle|MPos:1.000,0.000,0.000,0.000|Bf:100,1023>\n";
+    let mut streamer = Streamer::new(numbered(5), no_query()).unwrap();
+    streamer.transmit().unwrap();
+    streamer.receive(b"ok\nok\n");
+    streamer.interrupt("SIGINT");
+    assert_eq!(streamer.transmit(), Some(vec![b'!']));
+    // Idle with three lines unanswered: not standing, and the hold goes out again, since a
+    // hold that found the machine idle may not have taken.
+    streamer.receive(idle.as_bytes());
+    assert!(!streamer.is_standing());
+    assert_eq!(streamer.transmit(), Some(vec![b'!']));
+    // Every line answered, but a block still queued (99 of 100 free): not standing.
+    streamer.receive(b"ok\nok\nok\n<Idle|MPos:1.000,0.000,0.000,0.000|Bf:99,1023>\n");
+    assert!(!streamer.is_standing());
+    // Bytes still in the receive buffer: not standing either.
+    streamer.receive(b"<Idle|MPos:1.000,0.000,0.000,0.000|Bf:100,1000>\n");
+    assert!(!streamer.is_standing());
+    // A first Idle with everything empty follows a report that was not: not yet.
+    let mut streamer = Streamer::new(numbered(2), no_query()).unwrap();
+    streamer.transmit().unwrap();
+    streamer.receive(b"ok\nok\n<Run|MPos:1.000,0.000,0.000,0.000|Bf:99,1023>\n");
+    streamer.interrupt("SIGINT");
+    streamer.transmit();
+    streamer.receive(idle.as_bytes());
+    assert!(!streamer.is_standing());
+    // The second in a row is the controller's evidence.
+    streamer.receive(idle.as_bytes());
+    assert!(streamer.is_standing());
+    // Without `Bf:` no Idle proves it: the hold, sent again, is what ends the wait.
+    let mut streamer = Streamer::new(numbered(2), no_query()).unwrap();
+    streamer.transmit().unwrap();
+    streamer.receive(b"ok\nok\n");
+    streamer.interrupt("SIGINT");
+    for _ in 0..3 {
+        streamer.receive(b"<Idle|MPos:1.000,0.000,0.000,0.000>\n");
+    }
+    assert!(!streamer.is_standing());
+    streamer.receive(b"<Hold:0|MPos:1.000,0.000,0.000,0.000>\n");
+    assert!(streamer.is_standing());
 }
 
 #[test]
