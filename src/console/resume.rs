@@ -343,6 +343,7 @@ async fn resume_can(
         program: posted.name.clone(),
         on_progress: options.progress,
         commands: Some(commands),
+        line_of: Some(pickup.line_of_fn()),
     };
     let serve_options = ServeOptions {
         // The boot-up at real time, as the drives' and the master's timeouts are set for
@@ -381,7 +382,7 @@ async fn resume_can(
     if let Some(s) = merger.finish() {
         stretch(log, s);
     }
-    log_resume(log, started, &result);
+    // The master logged where to resume before its End.
     result
 }
 

@@ -760,6 +760,7 @@ async fn over_can(
         program: name.to_owned(),
         on_progress: options.progress,
         commands: options.commands,
+        line_of: Some(Pickup::whole(posted).line_of_fn()),
     };
     let serve_options = ServeOptions {
         time_scale: CAN_BOOT_TIME_SCALE,
@@ -801,7 +802,8 @@ async fn over_can(
         Err(DryRunError::CanStream(error)) => error.resume_move(),
         Err(_) => None,
     };
-    let resume_at = sim.resume_at(resume_move.map(|at| Pickup::whole(posted).line_of(at)));
+    // The master logged it before its End (1-based, as `--resume-at` takes it).
+    let resume_at = resume_move.map(|at| Pickup::whole(posted).line_of(at) + 1);
     let outcome = streamed?;
     let mut bus = bus.lock().unwrap_or_else(|p| p.into_inner());
     if outcome.completed {

@@ -141,7 +141,15 @@ pub struct CanOptions {
     /// a stand and brought back up to speed, the same stand then the drives disabled, or a
     /// quick stop.
     pub commands: Option<Commands>,
+    /// The program line (0-based) of each move of the program run: a run that does not
+    /// complete logs the line to resume at (1-based, as `--resume-at` takes it) just before
+    /// its `end`, in the order every transport logs them. `None`: the caller knows no
+    /// lines, and the log gets no `resume_at`.
+    pub line_of: Option<LineOf>,
 }
+
+/// The program line (0-based) of a move, by its index in the program a run is given.
+pub type LineOf = Box<dyn Fn(usize) -> usize + Send + Sync>;
 
 /// How a run ended.
 #[derive(Debug, Clone, PartialEq)]
@@ -633,7 +641,17 @@ pub async fn stream_can(
         run.outcome.resume_move = Some(resume_move);
     }
     // After a failed write the End may not land either; the failure is what the caller
-    // hears.
+    // hears. Where to resume goes first, as the serial transport logs it
+    // (docs/streaming.md, the log's events).
+    if let (false, Some(line_of)) = (run.outcome.completed, &options.line_of) {
+        let _ = log.write(
+            run.clock.started.elapsed().as_secs_f64(),
+            log::Event::ResumeAt {
+                line: line_of(resume_move) + 1,
+                possibly_run_to: None,
+            },
+        );
+    }
     let ended = log.write(
         run.clock.started.elapsed().as_secs_f64(),
         log::Event::End {
@@ -1010,6 +1028,7 @@ mod tests {
                 program: "p".into(),
                 on_progress: None,
                 commands: None,
+                line_of: None,
             };
             let error = stream_can(
                 &link,

@@ -368,6 +368,13 @@ impl Pickup {
         self.lines.get(index).copied().unwrap_or(self.end)
     }
 
+    /// [`Pickup::line_of`] as a function of its own, for a transport that logs where to
+    /// resume itself.
+    pub(crate) fn line_of_fn(&self) -> super::can::LineOf {
+        let (lines, end) = (self.lines.clone(), self.end);
+        Box::new(move |index| lines.get(index).copied().unwrap_or(end))
+    }
+
     /// A transport's `error`, with where to resume if it failed mid-run at `resume_move`.
     pub(crate) fn interrupted(
         &self,
@@ -475,6 +482,7 @@ pub async fn stream(
                     program: name,
                     on_progress: options.progress,
                     commands: Some(commands),
+                    line_of: Some(moves.line_of_fn()),
                 };
                 let mut outcome = stream_can(link, &moves.program, options, log)
                     .await
@@ -496,9 +504,9 @@ pub async fn stream(
         })
     }
     .await;
-    // The serial transport logs where to resume before its End; the fieldbus ones know
-    // moves, not lines, so the resume line they end at is logged here, beside it.
-    if matches!(link, Link::Modbus { .. } | Link::Can { .. }) {
+    // The serial and CAN transports log where to resume before their End; Modbus knows
+    // segments, not lines, so the resume line it ends at is logged here, beside it.
+    if matches!(link, Link::Modbus { .. }) {
         let resume = match &result {
             Ok(outcome) => outcome.resume(),
             Err(error) => error.resume(),

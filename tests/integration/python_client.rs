@@ -3,6 +3,11 @@
 //! over a real pseudo-terminal. A third-party grbl sender must get exactly one `ok` per line
 //! at grblHAL's 1024-byte RX buffer and at AVR grbl's 128 bytes, and whirl's own streamer
 //! cannot show that, because it shares the authors' reading of the protocol.
+//!
+//! Likewise for CANopen: python-canopen, the stack most Python CANopen tools use, with
+//! python-can's slcan interface, masters whirl-sim's three CiA 402 drives over its
+//! pseudo-terminal (`tests/clients/canopen_master.py`, the drives' object dictionary from
+//! `tests/data/cia402-drive.eds`).
 
 use crate::util;
 use std::collections::HashMap;
@@ -74,31 +79,19 @@ fn stream(program: &str, sim_rx: usize, client_rx: usize) -> Run {
         ],
     );
     let file = util::write(dir.path(), "program.nc", program);
-    // Output goes to files: a pipe left unread could fill and stall the client.
-    let (out_path, err_path) = (dir.path().join("stdout"), dir.path().join("stderr"));
-    let mut client = Command::new("python3")
-        .arg(util::root().join("tests/clients/grbl_stream.py"))
-        .args([link.as_os_str(), file.as_os_str()])
-        .args([OsStr::new("--rx"), OsStr::new(&client_rx.to_string())])
-        .stdout(File::create(&out_path).unwrap())
-        .stderr(File::create(&err_path).unwrap())
-        .spawn()
-        .expect("python3 runs the client");
+    let client_rx = client_rx.to_string();
     // The client bounds each wait by 10 s; this bounds the whole run if it still hangs.
-    let deadline = Instant::now() + Duration::from_secs(120);
-    let status = loop {
-        if let Some(status) = client.try_wait().unwrap() {
-            break status;
-        }
-        if Instant::now() > deadline {
-            let _ = client.kill();
-            let _ = client.wait();
-            panic!("the Python client did not finish in 120 s");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    let stdout = std::fs::read_to_string(&out_path).unwrap();
-    let stderr = std::fs::read_to_string(&err_path).unwrap();
+    let (status, stdout, stderr) = python(
+        dir.path(),
+        "tests/clients/grbl_stream.py",
+        &[
+            link.as_os_str(),
+            file.as_os_str(),
+            OsStr::new("--rx"),
+            OsStr::new(&client_rx),
+        ],
+        Duration::from_secs(120),
+    );
     let line = stdout
         .lines()
         .find(|l| l.starts_with("lines="))
@@ -154,4 +147,101 @@ fn a_client_counting_on_a_larger_buffer_than_the_controller_has_gets_errors() {
     assert!(!run.status.success());
     assert!(run.summary["error"] > 0, "{:?}", run.summary);
     assert!(run.stderr.contains("RX overflow"), "{}", run.stderr);
+}
+
+/// Runs `python3 SCRIPT ARGS…` to its end (at most `limit`): (status, stdout, stderr). The
+/// output goes to files in `dir`: a pipe left unread could fill and stall the client.
+fn python(
+    dir: &std::path::Path,
+    script: &str,
+    args: &[&OsStr],
+    limit: Duration,
+) -> (ExitStatus, String, String) {
+    let (out_path, err_path) = (dir.join("stdout"), dir.join("stderr"));
+    let mut client = Command::new("python3")
+        .arg(util::root().join(script))
+        .args(args)
+        .stdout(File::create(&out_path).unwrap())
+        .stderr(File::create(&err_path).unwrap())
+        .spawn()
+        .expect("python3 runs the client");
+    let deadline = Instant::now() + limit;
+    let status = loop {
+        if let Some(status) = client.try_wait().unwrap() {
+            break status;
+        }
+        if Instant::now() > deadline {
+            let _ = client.kill();
+            let _ = client.wait();
+            panic!("{script} did not finish in {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let stdout = std::fs::read_to_string(&out_path).unwrap();
+    let stderr = std::fs::read_to_string(&err_path).unwrap();
+    (status, stdout, stderr)
+}
+
+/// python-canopen masters whirl-sim's drives as it would any CiA 402 drive: NMT reset and
+/// boot-ups, SDO reads of the device type, the identity (1018h, which CiA 301 makes
+/// mandatory: the simulator lacked it) and the modes, PDO mapping written by its pdo
+/// module, BaseNode402's walk to Operation enabled, a cyclic synchronous position path,
+/// heartbeats, a following error's EMCY and the fault reset. The script's checks are its
+/// own, each a line on stdout; it bounds every wait by 5 s.
+#[test]
+fn python_canopen_masters_the_simulated_drives() {
+    if !util::python_with("canopen", "canopen python-can")
+        || !util::python_with("serial", "pyserial")
+    {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("slcan");
+    let _sim = util::Sim::serving(
+        OsStr::new("--can-slcan"),
+        &link,
+        &[OsStr::new("--idle-exit"), OsStr::new("30")],
+    );
+    let eds = util::root().join("tests/data/cia402-drive.eds");
+    let (status, stdout, stderr) = python(
+        dir.path(),
+        "tests/clients/canopen_master.py",
+        &[link.as_os_str(), eds.as_os_str()],
+        Duration::from_secs(120),
+    );
+    assert!(status.success(), "{status}\n{stdout}\n{stderr}");
+    for node in 1..=3 {
+        for what in [
+            "device type 0x00020192, CiA 402",
+            "6061h shows mode 8 (CSP)",
+            "TPDO1 mapped by SDO as written",
+            "Operation enabled",
+            "followed 100 set-points",
+            "all Operational",
+            "disabled",
+        ] {
+            let start = format!("ok: node {node}: ");
+            assert!(
+                stdout
+                    .lines()
+                    .any(|l| l.starts_with(&start) && l.contains(what)),
+                "no {start}… {what} in\n{stdout}"
+            );
+        }
+        assert!(
+            stdout.contains(&format!(
+                "node {node}: vendor 0x0, product 402, revision 0x10000, serial {node}"
+            )),
+            "{stdout}"
+        );
+    }
+    assert!(
+        stdout.contains("ok: node 1: EMCY 0x8611, following error"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("ok: node 1: reset, Operation enabled"),
+        "{stdout}"
+    );
+    assert!(stdout.ends_with("done\n"), "{stdout}");
 }
