@@ -784,7 +784,11 @@ impl Run {
                 }
                 continue;
             }
+            // What the port holds first: after the host kept this task waiting, the
+            // answers and heartbeats that came meanwhile are taken before the time that
+            // passed is told to the session, which would otherwise time them out.
             tokio::select! {
+                biased;
                 incoming = port.read(name) => {
                     let incoming = incoming?;
                     let now = self.clock.now();
