@@ -13,10 +13,10 @@
 //!
 //! Rapids are positioning, not cutting: the planner keeps them clear of the work (the
 //! lead-in and lead-out), so the guard judges the feed moves. So are moves with the ring
-//! clear of the work all round from end to end ([`clear_of_the_work`]): CiA 402 drives know
-//! no rapids, and every cycle they run reaches the guard as a move of its own, among them a
-//! resume's re-entry turning C back to the resume line's start with X clear, which cuts
-//! nothing. Any other move that turns C the other way, or feeds Z back while C turns,
+//! clear of the work all round from end to end (`clear_of_the_work` below): CiA 402
+//! drives know no rapids, and every cycle they run reaches the guard as a move of its own,
+//! among them a resume's re-entry turning C back to the resume line's start with X clear,
+//! which cuts nothing. Any other move that turns C the other way, or feeds Z back while C turns,
 //! cannot be measured and is itself a breach.
 
 use crate::config::job::Job;
