@@ -159,25 +159,6 @@ async fn resume_serial(
     outcome
 }
 
-/// Logs where a CANopen run that did not complete resumes, as
-/// [`crate::transport::stream`] logs it beside the run's end.
-fn log_resume(log: &mut ExecLog, started: Instant, result: &Result<Outcome, ResumeError>) {
-    let resume = match result {
-        Ok(outcome) => outcome.resume(),
-        Err(error) => error.stream().and_then(StreamError::resume),
-    };
-    if let Some(resume) = resume {
-        // The console's logs are in memory, which takes every event.
-        let _ = log.write(
-            started.elapsed().as_secs_f64(),
-            log::Event::ResumeAt {
-                line: resume.line + 1,
-                possibly_run_to: None,
-            },
-        );
-    }
-}
-
 /// An executed move of the simulator, into the console's log.
 fn executed(log: &mut ExecLog, started: Instant, block: &whirl_sim::ExecutedBlock) {
     // The console's logs are in memory, which takes every event.
@@ -343,6 +324,7 @@ async fn resume_can(
         program: posted.name.clone(),
         on_progress: options.progress,
         commands: Some(commands),
+        lines: Some(pickup.lines.clone()),
     };
     let serve_options = ServeOptions {
         // The boot-up at real time, as the drives' and the master's timeouts are set for
@@ -381,7 +363,7 @@ async fn resume_can(
     if let Some(s) = merger.finish() {
         stretch(log, s);
     }
-    log_resume(log, started, &result);
+    // The master logged where to resume before its End.
     result
 }
 

@@ -357,18 +357,6 @@ impl SimSide {
         self.log(log::Event::Message { text });
     }
 
-    /// Where a fieldbus run that did not complete resumes, `line` (0-based) of the program,
-    /// logged beside its End as `whirl stream` logs it; gives it 1-based, as the report
-    /// and `--resume-at` say it.
-    fn resume_at(&mut self, line: Option<usize>) -> Option<usize> {
-        let line = line? + 1;
-        self.log(log::Event::ResumeAt {
-            line,
-            possibly_run_to: None,
-        });
-        Some(line)
-    }
-
     fn log(&mut self, event: log::Event) {
         let t = self.started.elapsed().as_secs_f64();
         if let Err(error) = self.log.write(t, event) {
@@ -773,6 +761,7 @@ async fn over_can(
         program: name.to_owned(),
         on_progress: options.progress,
         commands: options.commands,
+        lines: Some(Pickup::whole(posted).lines.clone()),
     };
     let serve_options = ServeOptions {
         time_scale: CAN_BOOT_TIME_SCALE,
@@ -814,7 +803,8 @@ async fn over_can(
         Err(DryRunError::CanStream(error)) => error.resume_move(),
         Err(_) => None,
     };
-    let resume_at = sim.resume_at(resume_move.map(|at| Pickup::whole(posted).line_of(at)));
+    // The master logged it before its End (1-based, as `--resume-at` takes it).
+    let resume_at = resume_move.map(|at| Pickup::whole(posted).line_of(at) + 1);
     let outcome = streamed?;
     let mut bus = bus.lock().unwrap_or_else(|p| p.into_inner());
     if outcome.completed {

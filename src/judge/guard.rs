@@ -12,12 +12,16 @@
 //! nothing more will pass.
 //!
 //! Rapids are positioning, not cutting: the planner keeps them clear of the work (the
-//! lead-in and lead-out), so the guard judges the feed moves. Any feed move that turns C the
-//! other way, or feeds Z back while C turns, cannot be measured and is itself a breach.
+//! lead-in and lead-out), so the guard judges the feed moves. So are moves with the ring
+//! clear of the work all round from end to end (`clear_of_the_work` below): CiA 402
+//! drives know no rapids, and every cycle they run reaches the guard as a move of its own,
+//! among them a resume's re-entry turning C back to the resume line's start with X clear,
+//! which cuts nothing. Any other move that turns C the other way, or feeds Z back while C turns,
+//! cannot be measured and is itself a breach.
 
 use crate::config::job::Job;
 use crate::config::machine::MachineProfile;
-use crate::geometry::linkage::Ring;
+use crate::geometry::linkage::{Ring, Whirling};
 use crate::judge::measure::{Grid, Motion, PointError, Sample, Target};
 use crate::judge::verify::{self, CheckError};
 use std::collections::VecDeque;
@@ -36,6 +40,10 @@ pub struct DeltaGuard {
     delta: f64,
     /// X words are diameters: the motion's X is half of them.
     x_diameter: bool,
+    /// The ring the groove is cut with, and the work's largest radius: where the ring is
+    /// clear of the work.
+    ring: Ring,
+    rho_max: f64,
     /// For each profile position of the grid, the lowest and highest Z offset of the poses
     /// that seed its search.
     reach: Vec<(f64, f64)>,
@@ -66,12 +74,15 @@ impl DeltaGuard {
             })
             .collect();
         let open = grid.samples.iter().copied().collect();
+        let (_, rho_max) = job.profile.radius_range();
         Ok(DeltaGuard {
             target,
             grid,
             motion: Motion::empty(),
             delta: job.cut.delta,
             x_diameter: machine.x_diameter(),
+            ring,
+            rho_max,
             reach,
             open,
             ordered: false,
@@ -144,6 +155,12 @@ impl Guard for DeltaGuard {
         }
         let scale = if self.x_diameter { 0.5 } else { 1.0 };
         let at = |p: whirl_sim::Position| [p.x * scale, p.z, p.c];
+        // X moves along a straight move, so a ring clear at both ends is clear all along;
+        // clear of the work's largest radius by Δ more, as that radius is sampled.
+        let clear = |x: f64| clear_of_the_work(&self.ring, x * scale, self.rho_max + self.delta);
+        if clear(block.from.x) && clear(block.to.x) {
+            return Ok(());
+        }
         self.motion
             .push(at(block.from), at(block.to), block.line as usize)
             .map_err(|e| Breach {
@@ -196,6 +213,20 @@ impl Guard for DeltaGuard {
     fn measured(&self) -> Measured {
         self.measured
     }
+}
+
+/// Whether `ring`, its centre `x` (a radius) off the work's axis, keeps clear of a work of
+/// radius `rho` all round, whatever C and Z are: an internal ring's tip circle, tilted by
+/// δ, projects onto the transverse plane as an ellipse whose points are at least R·cos δ
+/// from its centre, so at least R·cos δ − |x| from the axis; an external ring's are at
+/// most R from its centre, so at least |x| − R from the axis; the insert's nose reaches r
+/// further. (The planner's clear position is such an X: `plan::clear_x`.)
+fn clear_of_the_work(ring: &Ring, x: f64, rho: f64) -> bool {
+    let nearest = match ring.whirling {
+        Whirling::Internal => ring.radius * ring.installation.cos() - x.abs(),
+        Whirling::External => x.abs() - ring.radius,
+    };
+    nearest - ring.nose > rho
 }
 
 #[cfg(test)]
@@ -313,12 +344,65 @@ mod tests {
 
     #[test]
     fn a_feed_turning_c_back_cannot_be_measured_and_trips() {
+        // Tr 40: the work's radius is 20 mm; the ring (R 32, r 0.4, δ 7.8°) centred 15 mm
+        // off the axis reaches 31.70 − 0.4 − 15 = 16.3 mm from it, into the work.
         let job = example("trapezoidal");
-        let program = "G21 G90 G94\nG1 X5 C10 F500\nG1 X5 C5\nM2";
+        let program = "G21 G90 G94\nG1 X15 C10 F500\nG1 X15 C5\nM2";
         let (out, _) = run(&job, program);
         assert!(
             out.contains("[MSG:the motion of line 3 cannot be measured: C turns both ways"),
             "{out}"
         );
+    }
+
+    #[test]
+    fn a_move_turning_c_back_with_the_ring_clear_of_the_work_is_positioning() {
+        // As CiA 402 drives run a resume's re-entry: X out to 0, C back at a feed, X in. At X 0 the ring (R 32, r 0.4, δ 7.8°) stays 31.70 − 0.4 = 31.3 mm from
+        // the axis, clear of Tr 40's 20 mm: that move cuts nothing and is not judged.
+        let job = example("trapezoidal");
+        let profile = MachineProfile::builtin_sim().unwrap();
+        let mut sim = Controller::new(&machine(&profile), ControllerOptions::default()).unwrap();
+        sim.set_guard(Box::new(
+            DeltaGuard::new(&job, ring(&job), &profile).unwrap(),
+        ));
+        // (Z stands, so that no point of the groove is settled by this motion, which is
+        // no whirling: only the direction of C is judged.)
+        sim.receive(b"G21 G90 G94\nG1 X15 C10 F500\nG1 X0\nG1 C5\nG1 X15\nG1 C20\n");
+        for _ in 0..100 {
+            sim.advance(0.1).unwrap();
+        }
+        let out = String::from_utf8(sim.take_output()).unwrap();
+        assert!(!out.contains("ALARM"), "{out}");
+        assert_eq!(sim.position().c, 20.0);
+    }
+
+    #[test]
+    fn the_ring_is_clear_of_the_work_where_no_point_of_it_reaches_the_work() {
+        let ring = |whirling, radius: f64, nose: f64, tilt_deg: f64| Ring {
+            whirling,
+            radius,
+            nose,
+            installation: tilt_deg.to_radians(),
+            edge_half_angle: 0.5,
+        };
+        // Internal, R 60, r 1.2, untilted, work radius 34: the tips pass 60 − x from the
+        // axis, the nose 1.2 nearer, so clear while |x| < 24.8, either side.
+        let internal = ring(Whirling::Internal, 60.0, 1.2, 0.0);
+        for x in [0.0, 24.7, -24.7] {
+            assert!(clear_of_the_work(&internal, x, 34.0), "{x}");
+        }
+        for x in [24.9, -24.9, 34.0] {
+            assert!(!clear_of_the_work(&internal, x, 34.0), "{x}");
+        }
+        // Tilted by 60°: the tip circle's projection is R·cos 60° = 30 across at its
+        // narrowest, so clear while |x| < 30 − 1.2 − 20 = 8.8 of a 20 mm work.
+        let tilted = ring(Whirling::Internal, 60.0, 1.2, 60.0);
+        assert!(clear_of_the_work(&tilted, 8.7, 20.0));
+        assert!(!clear_of_the_work(&tilted, 8.9, 20.0));
+        // External, R 45, r 1, work radius 20: clear beyond x = 45 + 1 + 20 = 66.
+        let external = ring(Whirling::External, 45.0, 1.0, 20.0);
+        assert!(clear_of_the_work(&external, 66.1, 20.0));
+        assert!(clear_of_the_work(&external, -66.1, 20.0));
+        assert!(!clear_of_the_work(&external, 65.9, 20.0));
     }
 }

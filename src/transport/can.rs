@@ -45,7 +45,7 @@
 //! ran carries it too ([`CanError::Interrupted`]).
 
 use super::control::{self, Commands};
-use super::progress::{Progress, ProgressFn, Unit};
+use super::progress::{MoveLines, Progress, ProgressFn, Unit};
 use crate::log::{self, ExecLog, LogError};
 use crate::post::setpoints::{sample, SampleConfig, SampleError, SetPoints};
 use crate::program::{Position, Program};
@@ -141,6 +141,11 @@ pub struct CanOptions {
     /// a stand and brought back up to speed, the same stand then the drives disabled, or a
     /// quick stop.
     pub commands: Option<Commands>,
+    /// The program line of each move of the program run: a run that does not complete
+    /// logs the line to resume at (1-based, as `--resume-at` takes it) just before its
+    /// `end`, in the order every transport logs them. `None`: the caller knows no lines,
+    /// and the log gets no `resume_at`.
+    pub lines: Option<MoveLines>,
 }
 
 /// How a run ended.
@@ -633,7 +638,17 @@ pub async fn stream_can(
         run.outcome.resume_move = Some(resume_move);
     }
     // After a failed write the End may not land either; the failure is what the caller
-    // hears.
+    // hears. Where to resume goes first, as the serial transport logs it
+    // (docs/streaming.md, the log's events).
+    if let (false, Some(lines)) = (run.outcome.completed, &options.lines) {
+        let _ = log.write(
+            run.clock.started.elapsed().as_secs_f64(),
+            log::Event::ResumeAt {
+                line: lines.line_of(resume_move) + 1,
+                possibly_run_to: None,
+            },
+        );
+    }
     let ended = log.write(
         run.clock.started.elapsed().as_secs_f64(),
         log::Event::End {
@@ -766,7 +781,11 @@ impl Run {
                 }
                 continue;
             }
+            // What the port holds first: after the host kept this task waiting, the
+            // answers and heartbeats that came meanwhile are taken before the time that
+            // passed is told to the session, which would otherwise time them out.
             tokio::select! {
+                biased;
                 incoming = port.read(name) => {
                     let incoming = incoming?;
                     let now = self.clock.now();
@@ -1010,6 +1029,7 @@ mod tests {
                 program: "p".into(),
                 on_progress: None,
                 commands: None,
+                lines: None,
             };
             let error = stream_can(
                 &link,

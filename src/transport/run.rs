@@ -408,8 +408,7 @@ pub async fn stream(
     };
     // Where the fieldbus transports pick the program up.
     let pickup = |approach| Pickup::new(posted, approach, from.unwrap_or(0), options.resume_at);
-    let started = std::time::Instant::now();
-    let result: Result<Outcome, StreamError> = async {
+    async {
         Ok(match link {
             Link::Serial { port, baud } => {
                 let streamer = StreamerConfig {
@@ -493,6 +492,7 @@ pub async fn stream(
                     program: name,
                     on_progress: options.progress,
                     commands: Some(commands),
+                    lines: Some(moves.lines.clone()),
                 };
                 let mut outcome = stream_can(link, &moves.program, options, log)
                     .await
@@ -513,24 +513,5 @@ pub async fn stream(
             }
         })
     }
-    .await;
-    // The serial and Modbus transports log where to resume before their End; the CANopen
-    // one knows moves, not lines, so the resume line it ends at is logged here, beside it.
-    if matches!(link, Link::Can { .. }) {
-        let resume = match &result {
-            Ok(outcome) => outcome.resume(),
-            Err(error) => error.resume(),
-        };
-        if let Some(resume) = resume {
-            // Best effort: the run has ended, and what ended it is what the caller hears.
-            let _ = log.write(
-                started.elapsed().as_secs_f64(),
-                crate::log::Event::ResumeAt {
-                    line: resume.line + 1,
-                    possibly_run_to: None,
-                },
-            );
-        }
-    }
-    result
+    .await
 }

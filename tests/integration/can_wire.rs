@@ -111,6 +111,7 @@ fn options(profile: &MachineProfile, drives: &DriveSettings) -> CanOptions {
         program: "double-start (short)".to_owned(),
         on_progress: None,
         commands: None,
+        lines: None,
     }
 }
 

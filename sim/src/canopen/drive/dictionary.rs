@@ -20,6 +20,14 @@ pub(super) mod abort {
 
 /// 1000h: CiA 402 (0x0192) in the low word, servo drive (0x02) above it.
 pub const DEVICE_TYPE: u32 = 0x0002_0192;
+/// 1018h sub-index 1, the vendor-ID: CiA assigns them to manufacturers, and a simulator
+/// has none.
+pub const VENDOR_ID: u32 = 0;
+/// 1018h sub-index 2, the product code: the manufacturer's own; the profile's number here.
+pub const PRODUCT_CODE: u32 = 402;
+/// 1018h sub-index 3, the revision number: major revision 1 in the high word, minor 0 in
+/// the low one (CiA 301's layout).
+pub const REVISION: u32 = 0x0001_0000;
 /// The interpolation time indices the drive takes: 1 µs to 1 s units.
 const INTERPOLATION_INDICES: std::ops::RangeInclusive<i8> = -6..=0;
 
@@ -110,6 +118,23 @@ impl Drive {
             0x1000 => var(4, false, DEVICE_TYPE),
             0x1001 => var(1, false, self.error_register.into()),
             0x1017 => var(2, true, self.heartbeat_ms.into()),
+            // The identity object, which CiA 301 makes mandatory (sub-index 1 at least):
+            // vendor-ID, product code, revision and serial number (the node-ID here).
+            0x1018 => {
+                let value = match sub {
+                    0 => 4,
+                    1 => VENDOR_ID,
+                    2 => PRODUCT_CODE,
+                    3 => REVISION,
+                    4 => self.config.node.into(),
+                    _ => return Err(abort::NO_SUB),
+                };
+                Ok(Entry {
+                    size: if sub == 0 { 1 } else { 4 },
+                    writable: false,
+                    value,
+                })
+            }
             0x6040 => var(2, true, self.controlword.into()),
             0x6041 => var(2, false, self.statusword().into()),
             0x6060 => var(1, true, u32::from(self.mode as u8)),

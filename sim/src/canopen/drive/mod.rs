@@ -12,6 +12,8 @@
 //! - **Heartbeat.** Every 1017h milliseconds (0: off), the NMT state byte on 0x700 + node
 //!   (0x04 Stopped, 0x05 Operational, 0x7F Pre-operational); writing 1017h restarts the
 //!   period.
+//! - **Identity** (1018h, which CiA 301 makes mandatory): vendor-ID 0 (a simulator has
+//!   none of CiA's), product code 402, revision 1.0, serial number the node-ID.
 //! - **SDO server**, expedited only, on 0x600 + node, answering on 0x580 + node. Frames
 //!   of other than 8 bytes are ignored (CiA 301 gives SDO frames 8). Aborts: 0x06020000
 //!   unknown object, 0x06090011 unknown sub-index, 0x06010002 read-only, 0x06070012 /

@@ -256,6 +256,21 @@ fn uploads_answer_with_the_objects_size() {
 }
 
 #[test]
+fn the_identity_object_is_there_read_only() {
+    // CiA 301 makes 1018h mandatory: sub-index 0 the highest sub-index (UNSIGNED8), 1–4
+    // vendor-ID, product code, revision number, serial number (UNSIGNED32 each). A master
+    // (python-canopen's `sdo[0x1018]`) reads it to tell which device it found.
+    let mut drive = booted(DriveConfig::new(1));
+    assert_eq!(read(&mut drive, 0x1018, 0), Ok((0x4F, 4)));
+    assert_eq!(read(&mut drive, 0x1018, 1), Ok((0x43, 0)));
+    assert_eq!(read(&mut drive, 0x1018, 2), Ok((0x43, 402)));
+    assert_eq!(read(&mut drive, 0x1018, 3), Ok((0x43, 0x0001_0000)));
+    assert_eq!(read(&mut drive, 0x1018, 4), Ok((0x43, 1)));
+    assert_eq!(read(&mut drive, 0x1018, 5), Err(0x0609_0011));
+    assert_eq!(write(&mut drive, 0x1018, 4, 1, 4), Err(0x0601_0002));
+}
+
+#[test]
 fn sdo_aborts_carry_cia_301_codes() {
     let mut drive = booted(DriveConfig::new(1));
     assert_eq!(read(&mut drive, 0x2000, 0), Err(0x0602_0000));

@@ -17,7 +17,10 @@ pub struct SessionConfig {
     pub nodes: [NodeId; 3],
     /// How long to wait for boot-up messages, before and after NMT reset communication.
     pub boot_wait: Duration,
-    /// How long an SDO transfer may take.
+    /// How long an SDO transfer may take. A drive's firmware answers SDOs beside its
+    /// control cycle, and neither CiA 301 nor a drive says how soon; the configuration is
+    /// no race, so the default waits a second (100 ms, as before, was lost to a host busy
+    /// elsewhere: the job refused for a drive that was there).
     pub sdo_timeout: Duration,
     /// The producer heartbeat time written to every drive (1017h), ms; not 0.
     pub heartbeat_ms: u16,
@@ -120,7 +123,7 @@ impl Default for SessionConfig {
         SessionConfig {
             nodes: [node(1), node(2), node(3)],
             boot_wait: Duration::from_millis(500),
-            sdo_timeout: Duration::from_millis(100),
+            sdo_timeout: Duration::from_secs(1),
             heartbeat_ms: 50,
             heartbeat_timeout: Duration::from_millis(150),
             following_error_window: 10_000,
