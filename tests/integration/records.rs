@@ -1597,7 +1597,7 @@ fn a_database_a_newer_whirl_has_migrated_further_is_refused_naming_it() {
             .unwrap();
         sqlx::raw_sql(
             "INSERT INTO _sqlx_migrations (version, description, success, checksum, \
-             execution_time) VALUES (2, 'from a newer whirl', TRUE, x'00', 0)",
+             execution_time) VALUES (3, 'from a newer whirl', TRUE, x'00', 0)",
         )
         .execute(&mut conn)
         .await
@@ -1608,7 +1608,7 @@ fn a_database_a_newer_whirl_has_migrated_further_is_refused_naming_it() {
     let o = whirl_in(&db, dir.path(), &[OsStr::new("runs"), OsStr::new("list")]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
-        stderr(&o).contains(&db) && stderr(&o).contains("migration 2"),
+        stderr(&o).contains(&db) && stderr(&o).contains("migration 3"),
         "{}",
         stderr(&o)
     );

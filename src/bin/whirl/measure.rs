@@ -339,7 +339,7 @@ fn moved_points(job: &Path, job_text: &str, output: &Path) -> Result<Option<Stri
 }
 
 /// The path from folder `from` to `to`, both absolute.
-fn relative(from: &Path, to: &Path) -> PathBuf {
+pub(crate) fn relative(from: &Path, to: &Path) -> PathBuf {
     let (a, b): (Vec<Component>, Vec<Component>) =
         (from.components().collect(), to.components().collect());
     let common = a.iter().zip(&b).take_while(|(x, y)| x == y).count();
