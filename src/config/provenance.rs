@@ -130,8 +130,8 @@ pub enum ProvenanceError {
 
 impl Provenance {
     /// The header's comments, each `whirl provenance: key=value`, in [`KEYS`]' order.
-    /// Paths and the machine's name are written with every byte outside `A-Z a-z 0-9 . _
-    /// - / : + @` as `%XX`, so that no controller's comment rules change them (grbl's
+    /// Paths and the machine's name are written with every byte outside `A-Z a-z 0-9`, the
+    /// space and `. _ - / : + @` as `%XX`, so that no controller's comment rules change them (grbl's
     /// real-time characters, parentheses, LinuxCNC's active comments, non-ASCII).
     pub fn fields(&self) -> Vec<String> {
         let mut fields = vec![
@@ -170,14 +170,16 @@ impl Provenance {
     ) -> Result<Provenance, ProvenanceError> {
         let mut values: [Option<(usize, String)>; KEYS.len()] = Default::default();
         for (line, text) in texts {
-            let rest = text.trim().strip_prefix(MARK).unwrap_or(text).trim();
+            let text = text.trim_start();
+            let rest = text.strip_prefix(MARK).unwrap_or(text).trim_start();
             let Some((key, value)) = rest.split_once('=') else {
                 return Err(ProvenanceError::NotKeyValue {
                     line,
                     text: rest.to_owned(),
                 });
             };
-            let (key, value) = (key.trim(), value.trim());
+            // The value as written: a name or a path may end in a space.
+            let key = key.trim();
             let Some(slot) = KEYS.iter().position(|k| *k == key) else {
                 return Err(ProvenanceError::UnknownKey {
                     line,
@@ -288,7 +290,7 @@ fn check_hash(key: &str, (line, value): (usize, String)) -> Result<String, Prove
 
 /// Whether `byte` is written as it is in a header's path or name.
 fn plain(byte: u8) -> bool {
-    byte.is_ascii_alphanumeric() || b"._-/:+@".contains(&byte)
+    byte.is_ascii_alphanumeric() || b" ._-/:+@".contains(&byte)
 }
 
 /// `text` with every byte that is not [`plain`] as `%XX`.
@@ -395,7 +397,7 @@ mod tests {
                 "{f}"
             );
         }
-        assert!(fields.contains(&format!("{MARK} job=../jobs/a%20%28copy%29/job%3F.toml")));
+        assert!(fields.contains(&format!("{MARK} job=../jobs/a %28copy%29/job%3F.toml")));
         assert_eq!(Provenance::from_fields(lines(&fields)), Ok(p.clone()));
         let without_points = Provenance { points: None, ..p };
         let fields = without_points.fields();

@@ -373,7 +373,8 @@ fn stream(
     (feed_override, unchecked): (Option<u16>, bool),
 ) -> Result<ExitCode> {
     let name = input.display().to_string();
-    let (text, cap) = if input.extension().is_some_and(|e| e == "toml") {
+    let is_job = input.extension().is_some_and(|e| e == "toml");
+    let (text, cap) = if is_job {
         let plan = fastest::planned(&mut Job::load(input)?, machine)?;
         let here = provenance::here()?;
         let header = provenance::of_plan(input, machine, file, &here, &plan, false)?;
@@ -383,17 +384,19 @@ fn stream(
         (plan.text, Some(cap))
     } else {
         let text = std::fs::read_to_string(input).with_context(|| format!("cannot read {name}"))?;
-        // Before anything is opened: a stale program, one for another machine or one
-        // without provenance goes no further unless the operator says so.
-        let checked = provenance::check(input, &text, None, machine, file);
-        provenance::refuse_or_warn(&checked, input, unchecked)?;
-        record.provenance(checked.record(whirl::records::ProvenanceCheck::Overridden));
         (text, None)
     };
     let cap = keys::start_cap(cap, feed_override, input)?;
     let posted = Posted::read(name.as_str(), &text, machine)
         .with_context(|| format!("cannot read {name}"))?;
     posted.check(machine)?;
+    if !is_job {
+        // Before anything is opened: a stale program, one for another machine or one
+        // without provenance goes no further unless the operator says so.
+        let checked = provenance::check(input, &text, None, machine, file);
+        provenance::refuse_or_warn(&checked, input, unchecked)?;
+        record.provenance(checked.record(whirl::records::ProvenanceCheck::Overridden));
+    }
     // One run per machine: refused, naming the holder, while another process (a console,
     // another terminal) runs this port.
     let _lock = whirl::console::lock::MachineLock::acquire(

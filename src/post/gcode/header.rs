@@ -166,7 +166,7 @@ mod tests {
         assert_eq!(lines[0], "N1 (whirl provenance: version=0.1.0)");
         assert_eq!(
             lines[1],
-            "N2 (whirl provenance: job=../jobs/job%20%282%29.toml)"
+            "N2 (whirl provenance: job=../jobs/job %282%29.toml)"
         );
         // The program's own blocks follow unchanged.
         let blocks = |t: &str| -> Vec<String> {
