@@ -735,7 +735,12 @@ fn show(db: &str, home: &Path, id: &Value) -> Value {
 /// the retract), written to `dir/short.nc`.
 fn short_of(planned: &Path, dir: &Path) -> PathBuf {
     let text = std::fs::read_to_string(planned).unwrap();
-    let mut lines: Vec<&str> = text.lines().take(66).collect();
+    // Its provenance header kept: the job and the machine are those it was planned from.
+    let header = text
+        .lines()
+        .take_while(|l| l.contains("whirl provenance"))
+        .count();
+    let mut lines: Vec<&str> = text.lines().take(header + 66).collect();
     lines.extend(["G94", "G0 X0", "M5", "M2"]);
     util::write(dir, "short.nc", &(lines.join("\n") + "\n"))
 }
