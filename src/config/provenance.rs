@@ -129,7 +129,7 @@ pub enum ProvenanceError {
 }
 
 impl Provenance {
-    /// The header's comments, each `whirl provenance: key=value`, in [`KEYS`]' order.
+    /// The header's comments, each `whirl provenance: key=value`, in the order of its keys.
     /// Paths and the machine's name are written with every byte outside `A-Z a-z 0-9`, the
     /// space and `. _ - / : + @` as `%XX`, so that no controller's comment rules change them (grbl's
     /// real-time characters, parentheses, LinuxCNC's active comments, non-ASCII).

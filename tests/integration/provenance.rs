@@ -492,4 +492,17 @@ fn a_plan_records_its_provenance_and_a_dry_run_of_a_stale_program_says_so() {
     );
     let run = shop.last_run();
     assert_eq!(run["provenance"]["check"], "reported", "{run}");
+    // whirl verify, given the job too, says the same.
+    let report = shop.path("verify.json");
+    let o = shop.whirl(&[
+        os("verify"),
+        program.as_os_str(),
+        os("--job"),
+        shop.job().as_os_str(),
+        os("--report"),
+        report.as_os_str(),
+    ]);
+    let err = text(&o.stderr);
+    assert!(err.contains("was not planned from the job"), "{err}");
+    assert!(report.exists(), "{err}");
 }

@@ -178,6 +178,8 @@ pub(crate) struct Checked {
     pub(crate) findings: Vec<String>,
     /// The command that plans it again.
     pub(crate) plan_again: String,
+    /// The program has no provenance header at all (written by hand, or by another tool).
+    bare: bool,
 }
 
 impl Checked {
@@ -222,6 +224,7 @@ pub(crate) fn check(
                      from, nor whether they changed since"
                 )],
                 plan_again: format!("whirl plan JOB.toml{machine_flag} -o {name}"),
+                bare: true,
             }
         }
         Err(error) => {
@@ -232,6 +235,7 @@ pub(crate) fn check(
                      which job and machine profile it was planned from"
                 )],
                 plan_again: format!("whirl plan JOB.toml{machine_flag} -o {name}"),
+                bare: false,
             }
         }
     };
@@ -296,6 +300,7 @@ pub(crate) fn check(
         header: Some(header),
         findings,
         plan_again,
+        bare: false,
     }
 }
 
@@ -373,10 +378,12 @@ pub(crate) fn refuse_or_warn(checked: &Checked, program: &Path, unchecked: bool)
     )
 }
 
-/// `dry-run --program`'s and `verify`'s word on a program that does not match its header:
-/// they measure it against the job they are given whatever it was planned from.
+/// `dry-run --program`'s, `verify`'s and `measure --program`'s word on a program whose
+/// header does not match the job and machine they are given: they measure it against that
+/// job whatever it was planned from. A program without a header (written by hand, the
+/// usual reason to measure a given program) is measured without a word.
 pub(crate) fn report(checked: &Checked) {
-    if checked.findings.is_empty() {
+    if checked.findings.is_empty() || checked.bare {
         return;
     }
     crate::terminal::warn(&format!(

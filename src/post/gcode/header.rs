@@ -227,7 +227,7 @@ mod tests {
             Err(ProvenanceError::Missing("delta-mm"))
         );
         // Provenance comments below the first block are not the header.
-        let late = format!("G21\n(whirl provenance: version=9)\n");
-        assert_eq!(read(&late), Ok(None));
+        let late = "G21\n(whirl provenance: version=9)\n";
+        assert_eq!(read(late), Ok(None));
     }
 }
