@@ -1077,6 +1077,19 @@ fn a_stream_to_the_machine_goes_over_its_profiles_connection_and_is_recorded() {
         "{run}"
     );
     assert_eq!(run["measured"], serde_json::Value::Null, "{run}");
+    // Its provenance: the console streams what it plans, from the job's bytes as read.
+    let provenance = &run["provenance"];
+    assert_eq!(provenance["check"], "planned", "{run}");
+    assert_eq!(provenance["header"]["machine_name"], "lathe 9", "{run}");
+    let job_sha256: String = {
+        use sha2::Digest;
+        let bytes = std::fs::read(jobs.join("short/job.toml")).unwrap();
+        sha2::Sha256::digest(bytes)
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect()
+    };
+    assert_eq!(provenance["header"]["job"]["sha256"], job_sha256, "{run}");
     // Searched by machine and outcome in the server.
     let found = serve
         .get("/api/history?machine=LATHE%209&outcome=completed")

@@ -5,9 +5,12 @@
 //! - [`machine`]: a machine profile: the controller's dialect and number type, travel,
 //!   rates and the spindle.
 //! - [`connection`]: a profile's `[connection]`: how the bridge reaches the machine.
+//! - [`provenance`]: what a program was planned from (the files' hashes, Δ, the angle and
+//!   the feed), as its header says it.
 
 pub mod connection;
 pub mod job;
 pub mod machine;
+pub mod provenance;
 #[cfg(test)]
 pub(crate) mod testing;

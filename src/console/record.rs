@@ -13,7 +13,7 @@ use crate::log::Record;
 use crate::records::from_log::LogFacts;
 use crate::records::{
     Ending, FileSnapshot, Kind, NewRun, Note, NoteKind, Outcome, Place, ProgramId, RecordError,
-    RunId, Store,
+    RunId, RunProvenance, Store,
 };
 use crate::transport::Posted;
 
@@ -38,6 +38,8 @@ pub struct Start<'a> {
     pub posted: &'a Posted,
     /// The plan report (JSON).
     pub plan_report: Option<String>,
+    /// What the program was planned from.
+    pub provenance: Option<RunProvenance>,
     /// How it goes (`serial`, `modbus-tcp`, …).
     pub transport: &'a str,
     /// Where it goes, for a stream to a machine; `None` for a dry run.
@@ -57,6 +59,7 @@ pub fn new_run(start: Start<'_>) -> NewRun {
         &start.posted.lines.join("\n"),
     ));
     run.plan_report = start.plan_report;
+    run.provenance = start.provenance;
     run.transport = Some(start.transport.to_owned());
     run.port = start.port;
     run.resume_from = start.resume_from;
@@ -131,6 +134,7 @@ mod tests {
             machine_name: "lathe",
             posted: &posted,
             plan_report: None,
+            provenance: None,
             transport: "modbus-tcp",
             port: None,
             resume_from: Some(2),

@@ -15,12 +15,13 @@ use super::registry::{around, Inputs, Registry, ResumePoint, RunError, RunView};
 use super::resume::{self, ResumeError, ResumeOptions};
 use crate::config::job::Job;
 use crate::config::machine::MachineProfile;
+use crate::config::provenance::{self, Provenance, Source};
 use crate::geometry::linkage::Ring;
 use crate::judge::dry_run::{self, DryRunOptions};
 use crate::judge::svg::Plot;
 use crate::log::{Event, ExecLog, FeedOverrideState, Record};
 use crate::plan::overrides::FeedCap;
-use crate::records::{Ending, FileSnapshot, NoteKind, Outcome, RunId, Store};
+use crate::records::{Ending, FileSnapshot, NoteKind, Outcome, RunId, RunProvenance, Store};
 use crate::transport::control::override_range;
 use crate::transport::{
     self, Commands, Link, Posted, Progress, ProgressFn, RunOptions, TransportKind,
@@ -142,6 +143,9 @@ struct RunInputs {
     job_file: Option<FileSnapshot>,
     /// The plan report (JSON), for the records.
     plan_report: Option<String>,
+    /// What the program was planned from, for the records: the console streams only what
+    /// it plans, so it is right by construction.
+    provenance: Option<RunProvenance>,
     /// The feed overrides the run may take ([`FeedCap`]); `None` on a transport whose
     /// controller takes its override from its own panel.
     feed_cap: Option<FeedCap>,
@@ -290,6 +294,10 @@ impl Console {
                     .map_err(|e| StartError::Preflight(e.to_string()))?;
             }
         }
+        let provenance = self
+            .machine_files
+            .get(&request.machine)
+            .map(|file| planned_from(&path, &bytes, machine, file, &plan));
         // The overrides the transport's controller takes, up to the cusp's cap.
         let feed_cap = override_range(kind).map(|range| FeedCap::of(&plan.report, range));
         let inputs = Arc::new(RunInputs {
@@ -298,6 +306,7 @@ impl Console {
             ring: plan.ring,
             job_file: Some(FileSnapshot::of(path.display().to_string(), &bytes)),
             plan_report: serde_json::to_string(&plan.report).ok(),
+            provenance,
             feed_cap,
             posted,
             transport: kind,
@@ -385,6 +394,7 @@ impl Console {
                     machine_name: machine,
                     posted: &inputs.posted,
                     plan_report: inputs.plan_report.clone(),
+                    provenance: inputs.provenance.clone(),
                     transport: inputs.transport.name(),
                     port: inputs.link.as_ref().map(Link::to_string),
                     resume_from: resume_at,
@@ -636,6 +646,43 @@ impl Console {
 const STALL_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// A run's ending when it could not be carried out.
+/// The provenance of `plan`, planned from the job file at `path` whose bytes are `job` for
+/// `machine`, its profile file as `file`; the points file the job names read now.
+fn planned_from(
+    path: &std::path::Path,
+    job: &[u8],
+    machine: &MachineProfile,
+    file: &FileSnapshot,
+    plan: &crate::plan::Plan,
+) -> RunProvenance {
+    let points = std::str::from_utf8(job)
+        .ok()
+        .and_then(provenance::points_named)
+        .and_then(|named| {
+            let at = path
+                .parent()
+                .unwrap_or(std::path::Path::new(""))
+                .join(&named);
+            std::fs::read(&at)
+                .ok()
+                .map(|bytes| Source::of(at.display().to_string(), &bytes))
+        });
+    RunProvenance::planned(Provenance {
+        version: env!("CARGO_PKG_VERSION").into(),
+        job: Source::of(path.display().to_string(), job),
+        points,
+        machine_name: machine.name.clone(),
+        machine: Source {
+            path: file.path.clone(),
+            sha256: file.sha256.clone(),
+        },
+        delta_mm: plan.report.delta_mm,
+        installation_angle_deg: plan.report.installation_angle_deg,
+        axial_feed_mm: plan.report.axial_feed_mm,
+        fastest: false,
+    })
+}
+
 fn failed(error: impl std::fmt::Display) -> Ending {
     let mut ending = Ending::new(Outcome::Failed);
     ending.reason = Some(error.to_string());

@@ -32,6 +32,9 @@ use std::path::PathBuf;
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 
+/// The one hash of the files a run reads, the one a program's provenance holds.
+pub use crate::config::provenance::sha256_hex;
+use crate::config::provenance::{hex, Provenance};
 pub use process::Process;
 pub use store::{Place, RecordError, Store};
 pub use time::Timestamp;
@@ -190,13 +193,49 @@ impl ProgramId {
     }
 }
 
-/// SHA-256 of `bytes`, lower-case hex.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    hex(&Sha256::digest(bytes))
+/// How a run's program stands to what it was planned from (docs/streaming.md#provenance).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ProvenanceCheck {
+    /// The run planned the program itself (`plan`, a job streamed or dry-run, the
+    /// console): its provenance is right by construction.
+    Planned,
+    /// The program's header was checked against its job and machine profile: they match.
+    Matched,
+    /// The check found the program stale, for another machine or without provenance, and
+    /// the operator streamed it all the same (`--no-provenance-check`).
+    Overridden,
+    /// A dry run or verification of a given program against a given job: what did not
+    /// match was said, and the program measured against the job all the same.
+    Reported,
 }
 
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
+/// A run's provenance, as its record keeps it (JSON in the `provenance` column).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunProvenance {
+    /// What the program was planned from: its header, or the plan's own; `None` for a
+    /// program without a header that reads.
+    pub header: Option<Provenance>,
+    /// How it stood to its job and machine profile.
+    pub check: ProvenanceCheck,
+    /// What the check found, when it did not match.
+    pub finding: Option<String>,
+}
+
+impl RunProvenance {
+    /// A program this run planned, from `header`.
+    pub fn planned(header: Provenance) -> RunProvenance {
+        RunProvenance {
+            header: Some(header),
+            check: ProvenanceCheck::Planned,
+            finding: None,
+        }
+    }
+
+    /// The JSON the record holds.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).expect("a provenance serialises")
+    }
 }
 
 /// Where a run's events are in its executed-path log.
@@ -229,6 +268,8 @@ pub struct NewRun {
     pub port: Option<String>,
     /// The line (1-based) the run starts at when it resumes an earlier one.
     pub resume_from: Option<usize>,
+    /// What its program was planned from, and how that was checked, when known at its start.
+    pub provenance: Option<RunProvenance>,
     /// Its executed-path log.
     pub log: Option<LogPlace>,
     /// The process that runs it.
@@ -248,6 +289,7 @@ impl NewRun {
             transport: None,
             port: None,
             resume_from: None,
+            provenance: None,
             log: None,
             process: Process::current(),
         }
@@ -278,6 +320,8 @@ pub struct Ending {
     pub program: Option<ProgramId>,
     /// The plan report (JSON), if the run planned.
     pub plan_report: Option<String>,
+    /// What the program the run planned was planned from (a plan learns it as it ends).
+    pub provenance: Option<RunProvenance>,
     /// A dry run's measured error.
     pub measured: Option<Measured>,
     /// Where to resume (1-based line), if it did not complete.
@@ -298,6 +342,7 @@ impl Ending {
             reason: None,
             program: None,
             plan_report: None,
+            provenance: None,
             measured: None,
             resume_at: None,
             possibly_run_to: None,
@@ -399,6 +444,9 @@ pub struct Run {
     pub port: Option<String>,
     /// The plan report.
     pub plan_report: Option<serde_json::Value>,
+    /// What its program was planned from, and how that was checked ([`RunProvenance`] as
+    /// JSON).
+    pub provenance: Option<serde_json::Value>,
     /// A dry run's measured error.
     pub measured: Option<Measured>,
     /// The line it started at, if it resumed an earlier run.

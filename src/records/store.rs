@@ -21,7 +21,7 @@ use super::process::{Liveness, Process};
 use super::time::Timestamp;
 use super::{
     Ending, FileSnapshot, Filter, Kind, LogPlace, Measured, NewRun, Note, NoteKind, Outcome,
-    ProgramId, Run, RunId, RunSummary,
+    ProgramId, Run, RunId, RunProvenance, RunSummary,
 };
 use crate::log::Ended;
 
@@ -275,13 +275,22 @@ async fn quick_check(pool: &AnyPool, place: &str, path: &Path) -> Result<(), Rec
 
 /// The records' schema, version by version.
 fn migrator() -> Migrator {
-    Migrator::with_migrations(vec![Migration::new(
-        1,
-        Cow::Borrowed("runs"),
-        MigrationType::Simple,
-        include_str!("migrations/0001_runs.sql").into_sql_str(),
-        false,
-    )])
+    Migrator::with_migrations(vec![
+        Migration::new(
+            1,
+            Cow::Borrowed("runs"),
+            MigrationType::Simple,
+            include_str!("migrations/0001_runs.sql").into_sql_str(),
+            false,
+        ),
+        Migration::new(
+            2,
+            Cow::Borrowed("provenance"),
+            MigrationType::Simple,
+            include_str!("migrations/0002_provenance.sql").into_sql_str(),
+            false,
+        ),
+    ])
 }
 
 /// How many times a new id is tried when another writer took the one chosen.
@@ -401,10 +410,11 @@ impl Store {
                 "INSERT INTO runs (id, kind, outcome, started_at, host, pid, process_started, \
                  boot_id, job_path, job_sha256, job_text, machine_name, machine_path, \
                  machine_sha256, machine_text, program_name, program_sha256, program_lines, \
-                 transport, port, plan_report, resume_from, resumes, log_path, log_offset) \
+                 transport, port, plan_report, resume_from, resumes, log_path, log_offset, \
+                 provenance) \
                  SELECT COALESCE(MAX(id), 0) + 1, $1, 'running', $2, $3, $4, $5, $6, $7, $8, \
-                 $9, $10, $11, $12, $13, $14, $15, $16, $17, $18, $19, $20, $21, $22, $23 \
-                 FROM runs RETURNING id",
+                 $9, $10, $11, $12, $13, $14, $15, $16, $17, $18, $19, $20, $21, $22, $23, \
+                 $24 FROM runs RETURNING id",
             )
             .bind(run.kind.as_str())
             .bind(&started)
@@ -433,6 +443,7 @@ impl Store {
                     .map(|l| l.path.to_string_lossy().into_owned()),
             )
             .bind(run.log.as_ref().map(|l| saturating(l.offset)))
+            .bind(run.provenance.as_ref().map(RunProvenance::to_json))
             .fetch_one(&self.pool)
             .await;
             match inserted {
@@ -516,7 +527,8 @@ impl Store {
              program_sha256 = COALESCE($6, program_sha256), \
              program_lines = COALESCE($7, program_lines), \
              plan_report = COALESCE($8, plan_report), \
-             resume_at = $9, possibly_run_to = $10, last_line = $11 \
+             resume_at = $9, possibly_run_to = $10, last_line = $11, \
+             provenance = COALESCE($12, provenance) \
              WHERE id = $1 AND outcome = 'running'",
         )
         .bind(id)
@@ -530,6 +542,7 @@ impl Store {
         .bind(ending.resume_at.map(line))
         .bind(ending.possibly_run_to.map(line))
         .bind(ending.last_line.map(line))
+        .bind(ending.provenance.as_ref().map(RunProvenance::to_json))
         .execute(&mut *tx)
         .await?;
         if updated.rows_affected() == 0 {
@@ -675,8 +688,8 @@ impl Store {
              machine_name, transport, resume_at, reason, host, pid, job_sha256, job_text, \
              machine_path, machine_sha256, machine_text, program_sha256, program_lines, port, \
              plan_report, max_overcut_mm, max_undercut_mm, delta_mm, within_delta, \
-             resume_from, resumes, possibly_run_to, last_line, log_path, log_offset \
-             FROM runs WHERE id = $1",
+             resume_from, resumes, possibly_run_to, last_line, log_path, log_offset, \
+             provenance FROM runs WHERE id = $1",
         )
         .bind(id)
         .fetch_optional(&self.pool)
@@ -867,6 +880,9 @@ fn run(row: &AnyRow, notes: Vec<Note>) -> Result<Run, sqlx::Error> {
     let plan_report = row
         .try_get::<Option<String>, _>("plan_report")?
         .map(|text| serde_json::from_str(&text).unwrap_or(serde_json::Value::String(text)));
+    let provenance = row
+        .try_get::<Option<String>, _>("provenance")?
+        .map(|text| serde_json::from_str(&text).unwrap_or(serde_json::Value::String(text)));
     let log = row
         .try_get::<Option<String>, _>("log_path")?
         .map(|path| -> Result<LogPlace, sqlx::Error> {
@@ -886,6 +902,7 @@ fn run(row: &AnyRow, notes: Vec<Note>) -> Result<Run, sqlx::Error> {
         program_id,
         port: row.try_get("port")?,
         plan_report,
+        provenance,
         measured,
         resume_from: usize_of(row.try_get("resume_from")?),
         resumes: row.try_get("resumes")?,

@@ -510,6 +510,8 @@ fn a_can_stream_to_a_port_that_does_not_exist_names_it() {
     let message = fails(&[
         OsStr::new("stream"),
         program.as_os_str(),
+        // Written here, not planned: it carries no provenance.
+        OsStr::new("--no-provenance-check"),
         OsStr::new("--machine"),
         profile.as_os_str(),
         OsStr::new("--port"),

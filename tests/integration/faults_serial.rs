@@ -220,7 +220,9 @@ fn ends_by_line(lines: &[String]) -> Vec<[f64; 3]> {
     let mut at = [f64::NAN; 3];
     let mut ends = vec![at];
     for line in lines {
-        for word in line.split_whitespace() {
+        // A comment (the title, the provenance header) holds no words.
+        let words = line.split('(').next().unwrap_or_default();
+        for word in words.split_whitespace() {
             let (axis, value) = word.split_at(1);
             let slot = match axis {
                 "X" => 0,

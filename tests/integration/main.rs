@@ -21,6 +21,7 @@ mod modbus_wire;
 mod outputs;
 mod overrides;
 mod profiles;
+mod provenance;
 mod python_client;
 mod records;
 mod sim;

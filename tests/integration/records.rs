@@ -793,7 +793,12 @@ fn show(db: &str, home: &Path, id: &Value) -> Value {
 /// the retract), written to `dir/short.nc`.
 fn short_of(planned: &Path, dir: &Path) -> PathBuf {
     let text = std::fs::read_to_string(planned).unwrap();
-    let mut lines: Vec<&str> = text.lines().take(66).collect();
+    // Its provenance header kept: the job and the machine are those it was planned from.
+    let header = text
+        .lines()
+        .take_while(|l| l.contains("whirl provenance"))
+        .count();
+    let mut lines: Vec<&str> = text.lines().take(header + 66).collect();
     lines.extend(["G94", "G0 X0", "M5", "M2"]);
     util::write(dir, "short.nc", &(lines.join("\n") + "\n"))
 }
@@ -1655,7 +1660,7 @@ fn a_database_a_newer_whirl_has_migrated_further_is_refused_naming_it() {
             .unwrap();
         sqlx::raw_sql(
             "INSERT INTO _sqlx_migrations (version, description, success, checksum, \
-             execution_time) VALUES (2, 'from a newer whirl', TRUE, x'00', 0)",
+             execution_time) VALUES (3, 'from a newer whirl', TRUE, x'00', 0)",
         )
         .execute(&mut conn)
         .await
@@ -1666,7 +1671,7 @@ fn a_database_a_newer_whirl_has_migrated_further_is_refused_naming_it() {
     let o = whirl_in(&db, dir.path(), &[OsStr::new("runs"), OsStr::new("list")]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
-        stderr(&o).contains(&db) && stderr(&o).contains("migration 2"),
+        stderr(&o).contains(&db) && stderr(&o).contains("migration 3"),
         "{}",
         stderr(&o)
     );

@@ -104,6 +104,12 @@ pub(crate) enum Command {
         /// 100 % while the program runs (docs/streaming.md).
         #[arg(long, value_name = "PERCENT")]
         feed_override: Option<u16>,
+        /// Stream a program even if its provenance header says its job or machine profile
+        /// has changed since it was planned, that it was planned for another machine, or
+        /// it has none (said on stderr and kept in the run's record). Without it such a
+        /// program is refused before anything is opened (docs/streaming.md#provenance).
+        #[arg(long)]
+        no_provenance_check: bool,
     },
     /// Dry-run a job: plan it, start the simulated controller in this process on a
     /// pseudo-terminal, stream the program to it through the same serial code a machine gets,

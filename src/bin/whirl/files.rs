@@ -218,19 +218,14 @@ impl Files {
 
 /// The points file a job file names, relative to the job's folder as the job's loading
 /// reads it; `None` if the job names none or cannot be read as TOML.
-fn points_file(job: &Path) -> Option<PathBuf> {
+pub(crate) fn points_file(job: &Path) -> Option<PathBuf> {
     // Only a regular file is read twice: a pipe (`whirl plan <(…)`) read here would be
     // empty for the job's loading.
     if !fs::metadata(job).ok()?.is_file() {
         return None;
     }
     let text = fs::read_to_string(job).ok()?;
-    let table: toml::Table = toml::from_str(&text).ok()?;
-    let points = table
-        .get("groove")?
-        .get("profile")?
-        .get("points")?
-        .as_str()?;
+    let points = whirl::config::provenance::points_named(&text)?;
     Some(job.parent().unwrap_or(Path::new("")).join(points))
 }
 

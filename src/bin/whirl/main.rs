@@ -11,6 +11,7 @@ mod interrupt;
 mod keys;
 mod measure;
 mod numbers;
+mod provenance;
 mod runs;
 mod serve;
 mod terminal;
@@ -103,6 +104,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             resume_at,
             unlock,
             feed_override,
+            no_provenance_check,
         } => {
             let files = if input.extension().is_some_and(|e| e == "toml") {
                 Files::new().job(&input)
@@ -114,7 +116,8 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
                 .log("the log (--log)", Some(&log))
                 .database(record.database())
                 .check()?;
-            let machine = load_machine(machine.as_deref())?;
+            let machine_path = machine;
+            let machine = load_machine(machine_path.as_deref())?;
             let link = Link::resolve(&machine, transport.map(TransportKind::from), port, baud)?;
             // Counted from 1 on the command line (clap refuses 0), from 0 below.
             let resume_at = resume_at.map(|line| line - 1);
@@ -124,14 +127,15 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
                 unlock,
                 progress: None,
             };
+            let file = provenance::MachineFile::read(machine_path.as_deref(), runs::BUILTIN_SIM)?;
             stream(
                 &input,
-                &machine,
+                (&machine, &file),
                 &link,
                 options,
                 &log,
                 record,
-                feed_override,
+                (feed_override, no_provenance_check),
             )
         }
         Command::DryRun {
@@ -235,10 +239,19 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
                 .job(&job)
                 .input("the machine profile (--machine)", machine.as_deref())
                 .check()?;
+            let file = provenance::MachineFile::read(machine.as_deref(), runs::BUILTIN_SIM)?;
             let machine = load_machine(machine.as_deref())?;
-            let job = fastest::resolve(Job::load(&job)?, &machine, Some(&program))?;
+            let job_path = job;
+            let job = fastest::resolve(Job::load(&job_path)?, &machine, Some(&program))?;
             let text = std::fs::read_to_string(&program)
                 .with_context(|| format!("cannot read {}", program.display()))?;
+            provenance::report(&provenance::check(
+                &program,
+                &text,
+                Some(&job_path),
+                &machine,
+                &file,
+            ));
             let ring = planned_ring(&job)?;
             let v = whirl::judge::verify::verify(&job, ring, &machine, &text, svg.is_some())
                 .with_context(|| format!("cannot verify {}", program.display()))?;
@@ -283,11 +296,23 @@ fn plan(
         .input("the machine profile (--machine)", machine)
         .database(record.database())
         .check()?;
+    let file = provenance::MachineFile::read(machine, runs::BUILTIN_SIM)?;
     let machine = load_machine(machine)?;
-    let mut job = Job::load(job)?;
+    let job_path = job;
+    let mut job = Job::load(job_path)?;
     job.cut.auto_feed |= fastest;
     record.begin(&machine, None, None)?;
-    let plan = fastest::planned(&mut job, &machine)?;
+    let mut plan = fastest::planned(&mut job, &machine)?;
+    let header = provenance::of_plan(
+        job_path,
+        &machine,
+        &file,
+        &provenance::real_folder(output)?,
+        &plan,
+        fastest,
+    )?;
+    provenance::stamp(&mut plan, &machine, &header)?;
+    record.provenance(whirl::records::RunProvenance::planned(header));
     record.planned(&plan);
     let mut verified = None;
     if verify {
@@ -345,16 +370,20 @@ fn plan(
 /// at `link`, checked against its limits before the log is opened.
 fn stream(
     input: &Path,
-    machine: &MachineProfile,
+    (machine, file): (&MachineProfile, &provenance::MachineFile),
     link: &Link,
     mut options: RunOptions,
     log: &Path,
     record: &mut runs::Recorder,
-    feed_override: Option<u16>,
+    (feed_override, unchecked): (Option<u16>, bool),
 ) -> Result<ExitCode> {
     let name = input.display().to_string();
-    let (text, cap) = if input.extension().is_some_and(|e| e == "toml") {
+    let is_job = input.extension().is_some_and(|e| e == "toml");
+    let (text, cap) = if is_job {
         let plan = fastest::planned(&mut Job::load(input)?, machine)?;
+        let here = provenance::here()?;
+        let header = provenance::of_plan(input, machine, file, &here, &plan, false)?;
+        record.provenance(whirl::records::RunProvenance::planned(header));
         record.planned(&plan);
         let cap = transport::control::feed_cap(&plan.report, link.kind());
         (plan.text, Some(cap))
@@ -366,6 +395,13 @@ fn stream(
     let posted = Posted::read(name.as_str(), &text, machine)
         .with_context(|| format!("cannot read {name}"))?;
     posted.check(machine)?;
+    if !is_job {
+        // Before anything is opened: a stale program, one for another machine or one
+        // without provenance goes no further unless the operator says so.
+        let checked = provenance::check(input, &text, None, machine, file);
+        provenance::refuse_or_warn(&checked, input, unchecked)?;
+        record.provenance(checked.record(whirl::records::ProvenanceCheck::Overridden));
+    }
     // One run per machine: refused, naming the holder, while another process (a console,
     // another terminal) runs this port.
     let _lock = whirl::console::lock::MachineLock::acquire(
@@ -453,20 +489,27 @@ fn dry_run(
             machine.dialect
         );
     }
+    let builtin = match controller {
+        Controller::WhirlSim => runs::BUILTIN_SIM,
+        Controller::Linuxcnc => runs::BUILTIN_LINUXCNC,
+    };
+    let file = provenance::MachineFile::read(paths.machine.as_deref(), builtin)?;
     let mut job = Job::load(&paths.job)?;
     let (name, text, cap, ring) = match &paths.program {
         Some(path) => {
             job = fastest::resolve(job, &machine, Some(path))?;
-            (
-                path.display().to_string(),
-                std::fs::read_to_string(path)
-                    .with_context(|| format!("cannot read {}", path.display()))?,
-                None,
-                planned_ring(&job)?,
-            )
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read {}", path.display()))?;
+            let checked = provenance::check(path, &text, Some(&paths.job), &machine, &file);
+            provenance::report(&checked);
+            record.provenance(checked.record(whirl::records::ProvenanceCheck::Reported));
+            (path.display().to_string(), text, None, planned_ring(&job)?)
         }
         None => {
             let plan = fastest::planned(&mut job, &machine)?;
+            let here = provenance::here()?;
+            let header = provenance::of_plan(&paths.job, &machine, &file, &here, &plan, false)?;
+            record.provenance(whirl::records::RunProvenance::planned(header));
             record.planned(&plan);
             let kind = match controller {
                 Controller::WhirlSim => options.transport,

@@ -84,6 +84,22 @@ pub(crate) fn run(args: MeasureArgs) -> Result<ExitCode> {
         .input("the program (--program)", args.program.as_deref())
         .check()?;
     let machine = crate::load_machine(args.machine.as_deref())?;
+    if let Some(program) = &args.program {
+        // Measured against the job given whatever it was planned from: said if that differs.
+        let file = crate::provenance::MachineFile::read(
+            args.machine.as_deref(),
+            crate::runs::BUILTIN_SIM,
+        )?;
+        let text = std::fs::read_to_string(program)
+            .with_context(|| format!("cannot read {}", program.display()))?;
+        crate::provenance::report(&crate::provenance::check(
+            program,
+            &text,
+            Some(&args.job),
+            &machine,
+            &file,
+        ));
+    }
     // An auto job measured at the feed it was cut at: its program's, or the fastest as
     // `whirl plan` finds it.
     let job = crate::fastest::resolve(Job::load(&args.job)?, &machine, args.program.as_deref())?;
@@ -339,7 +355,7 @@ fn moved_points(job: &Path, job_text: &str, output: &Path) -> Result<Option<Stri
 }
 
 /// The path from folder `from` to `to`, both absolute.
-fn relative(from: &Path, to: &Path) -> PathBuf {
+pub(crate) fn relative(from: &Path, to: &Path) -> PathBuf {
     let (a, b): (Vec<Component>, Vec<Component>) =
         (from.components().collect(), to.components().collect());
     let common = a.iter().zip(&b).take_while(|(x, y)| x == y).count();

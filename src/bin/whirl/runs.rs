@@ -26,7 +26,7 @@ use whirl::plan::Plan;
 use whirl::records::from_log::read_run;
 use whirl::records::{
     Ending, FileSnapshot, Filter, Kind, LogPlace, NewRun, Outcome, Place, Process, ProgramId, Run,
-    RunId, RunSummary, Store, Timestamp,
+    RunId, RunProvenance, RunSummary, Store, Timestamp,
 };
 use whirl::transport::{self, Link, Posted, StreamError};
 
@@ -306,6 +306,26 @@ fn show(run: &Run) -> Result<()> {
             log.offset
         )?;
     }
+    if let Some(provenance) = &run.provenance {
+        say!(
+            "provenance {}{}",
+            provenance["check"].as_str().unwrap_or("?"),
+            provenance["finding"]
+                .as_str()
+                .map_or(String::new(), |f| format!(": {f}"))
+        )?;
+        let header = &provenance["header"];
+        if !header.is_null() {
+            say!(
+                "planned    from {} (sha256 {}) for \"{}\" (sha256 {}) by whirl {}",
+                header["job"]["path"].as_str().unwrap_or("?"),
+                header["job"]["sha256"].as_str().unwrap_or("?"),
+                header["machine_name"].as_str().unwrap_or("?"),
+                header["machine"]["sha256"].as_str().unwrap_or("?"),
+                header["version"].as_str().unwrap_or("?"),
+            )?;
+        }
+    }
     if run.plan_report.is_some() {
         say!(
             "plan       its report is in `whirl runs show {} --json`",
@@ -326,11 +346,11 @@ fn show(run: &Run) -> Result<()> {
 }
 
 /// The built-in machine profiles, as a record keeps the profile a run used.
-const BUILTIN_SIM: (&str, &str) = (
+pub(crate) const BUILTIN_SIM: (&str, &str) = (
     "machine-profiles/sim.toml (built in)",
     include_str!("../../../machine-profiles/sim.toml"),
 );
-const BUILTIN_LINUXCNC: (&str, &str) = (
+pub(crate) const BUILTIN_LINUXCNC: (&str, &str) = (
     "machine-profiles/linuxcnc-lathe.toml (built in)",
     include_str!("../../../machine-profiles/linuxcnc-lathe.toml"),
 );
@@ -358,6 +378,8 @@ pub(crate) struct Recorder {
     allow_unrecorded: bool,
     inputs: Option<Inputs>,
     plan: Option<(String, ProgramId)>,
+    /// What the run's program was planned from, and how that was checked.
+    provenance: Option<RunProvenance>,
     /// How the run ended, as the command noted it.
     noted: Option<Ending>,
     open: Option<(Open, RunId, NewRun)>,
@@ -431,6 +453,7 @@ impl Recorder {
             allow_unrecorded: cli.allow_unrecorded,
             inputs,
             plan: None,
+            provenance: None,
             noted: None,
             open: None,
         }
@@ -484,6 +507,7 @@ impl Recorder {
             .map(str::to_owned);
         run.port = link.map(Link::to_string);
         run.resume_from = inputs.resume_from;
+        run.provenance = self.provenance.clone();
         run.log = inputs.log.as_deref().map(|path| LogPlace {
             path: std::path::absolute(path).unwrap_or_else(|_| path.to_owned()),
             offset: std::fs::metadata(path).map_or(0, |m| m.len()),
@@ -512,6 +536,12 @@ impl Recorder {
                  written); --allow-unrecorded runs it without a record",
             )),
         }
+    }
+
+    /// What the run's program was planned from, and how it was checked: kept from the
+    /// record's opening if known by then, else when it closes.
+    pub(crate) fn provenance(&mut self, provenance: RunProvenance) {
+        self.provenance = Some(provenance);
     }
 
     /// The job was planned: its report, and for `plan` the program it wrote.
@@ -573,6 +603,7 @@ impl Recorder {
                 ending.reason = Some(format!("{error:#}"));
             }
         }
+        ending.provenance = self.provenance.clone();
         if let Some((report, program)) = &self.plan {
             ending.plan_report = Some(report.clone());
             if run.kind == Kind::Plan {

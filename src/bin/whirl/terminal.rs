@@ -47,6 +47,11 @@ pub(crate) fn error(e: &anyhow::Error) {
     let _ = writeln!(std::io::stderr(), "error: {e:#}");
 }
 
+/// Prints `warning: …` on standard error (there is nowhere to say it if that is closed).
+pub(crate) fn warn(text: &str) {
+    let _ = writeln!(std::io::stderr(), "warning: {text}");
+}
+
 /// A progress bar with the time left on a terminal (stderr).
 pub(crate) struct Bar(indicatif::ProgressBar);
 

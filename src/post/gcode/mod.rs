@@ -12,8 +12,10 @@
 //! - [`format`](mod@format): numbers with just enough decimals, no trailing zeros, no `-0`.
 //! - [`writer`]: the writers.
 //! - [`parse`](mod@parse): the reader.
+//! - [`header`]: the provenance header at the top of a program, written and read.
 
 pub mod format;
+pub mod header;
 pub mod parse;
 pub mod writer;
 

@@ -129,6 +129,21 @@ pub enum PostError {
         /// The limit.
         max: usize,
     },
+    /// A line longer than the controller accepts once the provenance header is written
+    /// (a provenance comment with a long path, or a line whose number grew by a digit).
+    #[error(
+        "with the provenance header, the line \"{line}\" is {length} characters, over the \
+         controller's limit of {max} (a shorter path to the job or the machine profile \
+         shortens it)"
+    )]
+    HeaderTooLong {
+        /// The line.
+        line: String,
+        /// Its length in characters.
+        length: usize,
+        /// The limit.
+        max: usize,
+    },
     /// A number with more digits than the controller reads.
     #[error(
         "move {index} (not a file line): {word} has {digits} digits, but \
