@@ -639,6 +639,20 @@ fn groove_mid_run(page: &Session, serve: &Serve, job: &str) {
     page.open(&format!("{}#run", serve.url()));
 }
 
+/// The run page's program lines: the one executing marked, and the same as the program
+/// line shown, in one render.
+fn program_around_the_line(page: &Session, long: Duration) {
+    let (marked, line) = page.wait("the line executing", long, |p| {
+        let both = p.script(
+            "const l = document.querySelector('#run-around li.executing'); \
+             return l && [l.value, document.getElementById('run-line').textContent]",
+        );
+        let marked = both[0].as_u64()?;
+        Some((marked, both[1].as_str()?.to_owned()))
+    });
+    assert_eq!(first_number(&line), Some(marked as usize), "{line}");
+}
+
 /// Whether the run page shows the machine standing held, in its transport's words: grbl's
 /// `Hold:0` (the hold complete, the machine at rest), the Modbus register map's `Held`,
 /// the CANopen master's word once every drive stands on the path (drives report no state
@@ -699,16 +713,12 @@ fn dry_run_sequence(
         done(p).filter(|&n| n > first)
     });
     assert_eq!(page.text("run-banner-word"), "RUNNING");
-    // The program around the line executing, that line marked: one render's both.
-    let (marked, line) = page.wait("the line executing", long, |p| {
-        let both = p.script(
-            "const l = document.querySelector('#run-around li.executing'); \
-             return l && [l.value, document.getElementById('run-line').textContent]",
-        );
-        let marked = both[0].as_u64()?;
-        Some((marked, both[1].as_str()?.to_owned()))
-    });
-    assert_eq!(first_number(&line), Some(marked as usize), "{line}");
+    // The program around the line executing, that line marked: one render's both. (Only a
+    // grbl controller reports the line it executes; the fieldbus ones count segments and
+    // set-points.)
+    if transport == "serial" {
+        program_around_the_line(page, long);
+    }
     assert!(page.script("return document.getElementById('btn-resume').disabled") == true);
     if shots {
         shoot(page, "run-running");

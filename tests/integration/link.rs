@@ -291,7 +291,14 @@ fn a_move_past_the_travel_trips_alarm_2_and_nothing_after_it_executes() {
     lines[offending] = format!("N{} G1 X{}", n_of(offending), x_max + 10.0);
     // Scaled, with frequent status reports, so that the streamer sees lines execute (`Ln:`)
     // and its resume point below has evidence to go on.
-    let link = Link::start(ControllerOptions::default(), scaled());
+    // A planner of 35 blocks (`$398=35`), as the figures above count on.
+    let link = Link::start(
+        ControllerOptions {
+            planner_blocks: 35,
+            ..ControllerOptions::default()
+        },
+        scaled(),
+    );
     let outcome = link.stream(
         &lines,
         StreamOptions {
