@@ -483,6 +483,7 @@ fn no_link_use_figure_is_given_for_a_pseudo_terminal() {
     text.push_str("M2\n");
     let program = util::write(dir.path(), "p.nc", &text);
     let log = dir.path().join("exec.jsonl");
+    // Written by hand: it carries no provenance.
     let o = util::whirl(&[
         OsStr::new("stream"),
         program.as_os_str(),
@@ -490,6 +491,7 @@ fn no_link_use_figure_is_given_for_a_pseudo_terminal() {
         link.as_os_str(),
         OsStr::new("--log"),
         log.as_os_str(),
+        OsStr::new("--no-provenance-check"),
     ]);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
