@@ -23,9 +23,9 @@ pub const MARK: &str = "whirl provenance:";
 /// A file a program was planned from.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct Source {
-    /// Where it was: for the job and the machine profile, relative to the program's folder
-    /// (or absolute); for the points file, as the job names it; for a built-in profile,
-    /// [`BUILT_IN`] and its name.
+    /// Where it was: in a header, relative to the program's folder; for a program planned
+    /// and run at once, as the run found it (the command line: from its working directory);
+    /// for a built-in machine profile, [`BUILT_IN`] and its repository path.
     pub path: String,
     /// SHA-256 of its bytes, 64 lower-case hex digits.
     pub sha256: String,

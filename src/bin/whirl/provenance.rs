@@ -1,11 +1,12 @@
 //! A program's provenance on the command line (docs/streaming.md#provenance): `whirl plan`
 //! writes it at the top of the program, `whirl stream` refuses a program whose job or
 //! machine profile has changed since, that was planned for another machine, or that carries
-//! none, before anything is opened; `dry-run --program` and `verify` say so and go on.
+//! none, before anything is opened; `dry-run --program`, `verify` and `measure --program`
+//! say so and go on.
 //!
-//! The header's job and machine-profile paths are relative to the program's folder (an
-//! absolute path where there is no relative one), so a program finds its job from any
-//! working directory, and a folder of jobs and programs moved as a whole keeps them.
+//! The header's job and machine-profile paths are relative to the program's folder, so a
+//! program finds its job from any working directory, and a folder of jobs and programs
+//! moved as a whole keeps them.
 
 use std::path::{Component, Path, PathBuf};
 
@@ -67,22 +68,21 @@ pub(crate) fn of_plan(
     plan: &Plan,
     fastest: bool,
 ) -> Result<Provenance> {
-    let folder = folder.to_owned();
     let job_bytes = std::fs::read(job).with_context(|| format!("cannot read {}", job.display()))?;
     let points = match crate::files::points_file(job) {
         Some(points) => Some(Source::of(
-            recorded(&folder, &points)?,
+            recorded(folder, &points)?,
             &std::fs::read(&points).with_context(|| format!("cannot read {}", points.display()))?,
         )),
         None => None,
     };
     let machine_path = match &file.given {
-        Some(path) => recorded(&folder, path)?,
+        Some(path) => recorded(folder, path)?,
         None => format!("{BUILT_IN}{}", file.builtin),
     };
     Ok(Provenance {
         version: env!("CARGO_PKG_VERSION").into(),
-        job: Source::of(recorded(&folder, job)?, &job_bytes),
+        job: Source::of(recorded(folder, job)?, &job_bytes),
         points,
         machine_name: machine.name.clone(),
         machine: Source::of(machine_path, &file.bytes),
