@@ -352,10 +352,9 @@ async fn resume_can(
         }
     });
     let streamed = async {
-        let mut outcome = stream_can(&link, &pickup.program, can_options, log)
+        let outcome = stream_can(&link, &pickup.program, can_options, log)
             .await
             .map_err(|error| pickup.interrupted(error.resume_move(), error))?;
-        outcome.resume_line = outcome.resume_move.map(|at| pickup.line_of(at));
         Ok::<_, StreamError>(Outcome::Can(outcome))
     };
     let result = until_streamed(served, streamed).await;

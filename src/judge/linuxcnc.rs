@@ -45,7 +45,7 @@ use crate::log::ExecLog;
 use crate::log::LogError;
 use crate::program::Move;
 use crate::transport::linuxcnc::LinuxcncError;
-use crate::transport::linuxcnc::{run_linuxcnc, LinuxcncOptions, LinuxcncOutcome};
+use crate::transport::linuxcnc::{run_linuxcnc_unended, LinuxcncOptions, LinuxcncOutcome};
 use crate::transport::{control, Commands, Posted, ProgressFn};
 
 /// LinuxCNC's servo period, s: the sampler records once a period.
@@ -616,19 +616,24 @@ async fn run_on(
         commands: Some(commands),
         ..LinuxcncOptions::default()
     };
-    let outcome = run_linuxcnc(&instance.settings, &posted.lines, run_options, log).await;
+    let unended = run_linuxcnc_unended(&instance.settings, &posted.lines, run_options, log).await;
     relay.abort();
     // The last samples are a servo period behind the status LinuxCNC reports: let the
-    // sampler's FIFO drain (it reads far faster than 1 ms a sample), then end it.
+    // sampler's FIFO drain (it reads far faster than 1 ms a sample), then end it, and
+    // only then the run, so that the log has the whole path before its End.
     tokio::time::sleep(Duration::from_millis(500)).await;
     let _ = sampler.kill();
     let _ = sampler.wait();
     let path = tokio::task::spawn_blocking(move || reader.join())
         .await
-        .map_err(|e| LinuxcncSimError::Sampler(e.to_string()))?
-        .map_err(|_| LinuxcncSimError::Sampler("the reader panicked".into()))?
-        .map_err(LinuxcncSimError::Sampler)?;
-    let outcome = outcome?;
-    let sampled = path.finish(outcome.completed())?;
+        .map_err(|e| LinuxcncSimError::Sampler(e.to_string()))
+        .and_then(|joined| {
+            joined.map_err(|_| LinuxcncSimError::Sampler("the reader panicked".into()))
+        })
+        .and_then(|read| read.map_err(LinuxcncSimError::Sampler));
+    let unended = unended?;
+    let sampled = path.and_then(|path| Ok(path.finish(unended.completed())?));
+    let outcome = unended.end(log)?;
+    let sampled = sampled?;
     Ok((outcome, sampled))
 }

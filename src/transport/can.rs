@@ -161,8 +161,8 @@ pub struct CanOutcome {
     /// move the drives are not known to have run to its end ([`Session::resume_move`]);
     /// `None` when completed.
     pub resume_move: Option<usize>,
-    /// The program line (0-based) of `resume_move`, where [`crate::transport::stream`],
-    /// which knows the program's lines, filled it in.
+    /// The program line (0-based) of `resume_move`, where the caller gave the moves' lines
+    /// ([`CanOptions::lines`]).
     pub resume_line: Option<usize>,
     /// Set-points sent.
     pub sent: usize,
@@ -641,10 +641,12 @@ pub async fn stream_can(
     // hears. Where to resume goes first, as the serial transport logs it
     // (docs/streaming.md, the log's events).
     if let (false, Some(lines)) = (run.outcome.completed, &options.lines) {
+        let line = lines.line_of(resume_move);
+        run.outcome.resume_line = Some(line);
         let _ = log.write(
             run.clock.started.elapsed().as_secs_f64(),
             log::Event::ResumeAt {
-                line: lines.line_of(resume_move) + 1,
+                line: line + 1,
                 possibly_run_to: None,
             },
         );

@@ -176,18 +176,60 @@ pub async fn run_linuxcnc(
     options: LinuxcncOptions,
     log: &mut ExecLog,
 ) -> Result<LinuxcncOutcome, LinuxcncError> {
+    run_linuxcnc_unended(settings, lines, options, log)
+        .await?
+        .end(log)
+}
+
+/// As [`run_linuxcnc`], but the run's End is left to the caller, who may log more of the
+/// run first: a dry run's sampler reports the path a servo period behind LinuxCNC's last
+/// status, and its last stretches belong before the End. An error here leaves no run
+/// open: it came before the run's Start, or the log itself failed.
+pub async fn run_linuxcnc_unended(
+    settings: &LinuxcncSettings,
+    lines: &[String],
+    options: LinuxcncOptions,
+    log: &mut ExecLog,
+) -> Result<Unended, LinuxcncError> {
     let dir = settings
         .program_dir
         .as_ref()
         .map_or_else(std::env::temp_dir, PathBuf::from);
     let file = write_program(&dir, lines)?;
-    let result = session(settings, lines.len(), &file, options, log).await;
+    let unended = session(settings, lines.len(), &file, options, log).await?;
     // LinuxCNC has read what it ran (it reads ahead, and holds the file open while it
     // runs); the copy is the bridge's own and goes once the run is over.
-    if result.as_ref().is_ok_and(LinuxcncOutcome::completed) {
+    if unended.completed() {
         let _ = std::fs::remove_file(&file);
     }
-    result
+    Ok(unended)
+}
+
+/// A LinuxCNC run that is over, its Start logged and its End not yet.
+#[must_use = "a run's End is logged by `end`"]
+pub struct Unended {
+    started: Instant,
+    result: Result<LinuxcncOutcome, LinuxcncError>,
+}
+
+impl Unended {
+    /// Whether LinuxCNC ran the program to its end.
+    pub fn completed(&self) -> bool {
+        self.result.as_ref().is_ok_and(LinuxcncOutcome::completed)
+    }
+
+    /// Logs the run's End and gives its outcome.
+    pub fn end(self, log: &mut ExecLog) -> Result<LinuxcncOutcome, LinuxcncError> {
+        let (completed, reason) = match &self.result {
+            Ok(outcome) => (outcome.completed(), outcome.stop()),
+            Err(error) => (false, Some(error.to_string())),
+        };
+        log.write(
+            self.started.elapsed().as_secs_f64(),
+            Event::End { completed, reason },
+        )?;
+        self.result
+    }
 }
 
 async fn session(
@@ -196,7 +238,7 @@ async fn session(
     file: &Path,
     mut options: LinuxcncOptions,
     log: &mut ExecLog,
-) -> Result<LinuxcncOutcome, LinuxcncError> {
+) -> Result<Unended, LinuxcncError> {
     let started = Instant::now();
     let timeout = settings.timeout();
     let mut socket = tokio::time::timeout(timeout, TcpStream::connect(&settings.address))
@@ -341,12 +383,10 @@ async fn session(
         }
     };
     outcome.wall_time = started.elapsed();
-    let (completed, reason) = match &result {
-        Ok(()) => (outcome.completed(), outcome.stop()),
-        Err(error) => (false, Some(error.to_string())),
-    };
-    log.write(t(started), Event::End { completed, reason })?;
-    result.map(|()| outcome)
+    Ok(Unended {
+        started,
+        result: result.map(|()| outcome),
+    })
 }
 
 /// The caller's next command; never, without a caller.

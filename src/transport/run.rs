@@ -494,10 +494,9 @@ pub async fn stream(
                     commands: Some(commands),
                     lines: Some(moves.lines.clone()),
                 };
-                let mut outcome = stream_can(link, &moves.program, options, log)
+                let outcome = stream_can(link, &moves.program, options, log)
                     .await
                     .map_err(|error| moves.interrupted(error.resume_move(), error))?;
-                outcome.resume_line = outcome.resume_move.map(|at| moves.line_of(at));
                 Outcome::Can(outcome)
             }
             Link::Linuxcnc(settings) => {
