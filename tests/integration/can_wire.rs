@@ -665,9 +665,10 @@ async fn a_silent_port_is_a_clear_error_naming_what_was_awaited() {
              answer within 300ms"
         )
     );
-    // It waited for the first command's answer (the close), then gave up.
+    // It waited for the first command's answer (the close), then gave up: a timer never
+    // fires early, and how much later a busy host lets it fire is no verdict (the outer
+    // 10 s says it gave up at all).
     assert!(waited_wall >= answer_timeout, "{waited_wall:?}");
-    assert!(waited_wall < 3 * answer_timeout, "{waited_wall:?}");
     drop((master, slave));
 }
 

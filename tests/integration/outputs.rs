@@ -602,10 +602,10 @@ fn a_full_standard_output_is_an_error_said_once() {
     );
 }
 
-/// `whirl ARGS…` refused by its command line (exit 2) naming `option`, before anything
-/// runs.
+/// `whirl ARGS…` refused by its command line naming `option`, before anything runs: exit 2
+/// with the command line's "invalid value" (a run that ends beyond Δ exits 2 too, and
+/// says nothing of the kind).
 fn bad_number(args: &[&OsStr], option: &str) {
-    let started = Instant::now();
     let o = util::whirl(args);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{args:?}: {stderr}");
@@ -614,7 +614,6 @@ fn bad_number(args: &[&OsStr], option: &str) {
         "{args:?}: {stderr}"
     );
     assert!(!stderr.contains("panicked"), "{stderr}");
-    assert!(started.elapsed() < Duration::from_secs(5), "{args:?} ran");
 }
 
 #[test]
