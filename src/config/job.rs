@@ -101,6 +101,11 @@ pub struct ProfileSpec {
     pub points: Option<PathBuf>,
     /// The points are half a period: mirror them about the last point.
     pub mirror: Option<bool>,
+    /// Measured points: how far each may lie from the true curve, mm (a CMM's or an
+    /// optical projector's stated uncertainty). The profile is fitted within it, its
+    /// scatter smoothed away; without it, within the points' own rounding (half their last
+    /// decimal). See `geometry::profile::smoothing`.
+    pub fit_tolerance: Option<f64>,
     /// A standard profile instead of points.
     pub standard: Option<StandardKind>,
     /// Trapezoidal, Acme: major diameter d, mm.
@@ -492,6 +497,9 @@ impl JobFile {
         if let Some(f) = self.cut.plunge_feed {
             positive("cut.plunge_feed", f)?;
         }
+        if let Some(t) = self.groove.profile.fit_tolerance {
+            positive("groove.profile.fit_tolerance", t)?;
+        }
         let pitch = self.groove.lead / f64::from(self.groove.starts);
         match self.cut.axial_feed {
             AxialFeed::Mm(feed) if feed >= pitch => Err(JobError::Invalid {
@@ -516,6 +524,11 @@ impl JobFile {
             ("pitch_diameter", spec.pitch_diameter.is_some()),
             ("outer_diameter", spec.outer_diameter.is_some()),
         ];
+        if spec.standard.is_some() && spec.fit_tolerance.is_some() {
+            return Err(JobError::ProfileSpec(
+                "fit_tolerance belongs to points: a standard's form is exact".into(),
+            ));
+        }
         match (&spec.points, spec.standard) {
             (Some(_), Some(_)) => Err(JobError::ProfileSpec(
                 "give either points or standard, not both".into(),
@@ -544,12 +557,13 @@ impl JobFile {
                     error,
                 };
                 let rows = points::read_csv(&text).map_err(points_err)?;
-                points::profile(
+                points::profile_within(
                     &rows,
                     section,
                     spec.mirror.unwrap_or(false),
                     self.groove.p(),
                     self.groove.starts,
+                    spec.fit_tolerance,
                 )
                 .map_err(points_err)
             }

@@ -133,7 +133,11 @@ struct Shares<'a> {
 impl<'a> Shares<'a> {
     fn of(problem: &'a Problem<'a>) -> Shares<'a> {
         let b = problem.budget;
-        let both = problem.roundings().iter().map(|r| b.blend + r).collect();
+        let both = problem
+            .roundings()
+            .iter()
+            .map(|r| b.blend + b.fit + r)
+            .collect();
         let left = problem
             .cusps()
             .iter()

@@ -1,9 +1,11 @@
 //! The error budget of kinematics.md: how Δ is shared between interpolation, the feed scallop,
-//! the insert cusp, controller blending, number rounding and the material left in concave
-//! stretches too shallow to refuse.
+//! the insert cusp, controller blending, number rounding, the material left in concave
+//! stretches too shallow to refuse, and the profile's fit to rounded or measured points.
 //!
 //! The scallop and the cusp follow from the cut (feed, speeds) and the tool; blending and
-//! rounding from the machine; the concave stretches from the profile and the nose;
+//! rounding from the machine; the concave stretches from the profile and the nose; the fit
+//! from the points ([`crate::geometry::profile::smoothing`]): the program is measured
+//! against the fitted curve, which may lie that far from a point, either side;
 //! interpolation gets what is left, and node choice works to it.
 //!
 //! The shares do not all add up at one point, nor on one side of the surface. The scallop,
@@ -37,10 +39,30 @@ pub struct Budget {
     pub rounding: f64,
     /// Material left in concave stretches tighter than the nose but too shallow to refuse.
     pub concave: f64,
+    /// The fitted profile's largest distance from its points (0 for exact points and
+    /// standard forms).
+    pub fit: f64,
     /// What is left for interpolation between nodes where every share peaks at once: Δ less
-    /// the largest scallop and cusp and the blending, rounding and concave shares. The node
+    /// the largest scallop and cusp and the blending, rounding, concave and fit shares. The node
     /// choice works to each sample's own rooms instead ([`crate::plan::segment::Problem::rooms`]).
     pub interpolation: f64,
+}
+
+/// What Δ is spent on before interpolation, mm (see [`Budget`]'s fields).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Spent {
+    /// The feed scallop.
+    pub scallop: f64,
+    /// The insert cusp.
+    pub cusp: f64,
+    /// Blending.
+    pub blend: f64,
+    /// Rounding.
+    pub rounding: f64,
+    /// Concave stretches.
+    pub concave: f64,
+    /// The profile's fit.
+    pub fit: f64,
 }
 
 /// Why Δ cannot be met.
@@ -48,7 +70,7 @@ pub struct Budget {
 #[error(
     "Δ = {delta} mm is spent before interpolation: feed scallop {scallop:.5} mm, insert cusp \
      {cusp:.5} mm, blending {blend:.5} mm, rounding {rounding:.5} mm, concave stretches \
-     {concave:.5} mm; {hint}"
+     {concave:.5} mm, profile fit {fit:.5} mm; {hint}"
 )]
 pub struct BudgetError {
     /// Δ.
@@ -63,6 +85,8 @@ pub struct BudgetError {
     pub rounding: f64,
     /// Concave stretches.
     pub concave: f64,
+    /// The profile's fit.
+    pub fit: f64,
     /// What to change.
     pub hint: String,
 }
@@ -72,21 +96,22 @@ pub const MIN_INTERPOLATION_SHARE: f64 = 0.2;
 
 impl Budget {
     /// Share Δ out; interpolation must keep at least [`MIN_INTERPOLATION_SHARE`] of it.
-    pub fn new(
-        delta: f64,
-        scallop: f64,
-        cusp: f64,
-        blend: f64,
-        rounding: f64,
-        concave: f64,
-        feed: f64,
-    ) -> Result<Budget, BudgetError> {
-        // In this order: subtracting a concave share of 0 leaves the other figures exactly as
-        // they were.
-        let interpolation = delta - scallop - cusp - blend - rounding - concave;
+    pub fn new(delta: f64, spent: Spent, feed: f64) -> Result<Budget, BudgetError> {
+        let Spent {
+            scallop,
+            cusp,
+            blend,
+            rounding,
+            concave,
+            fit,
+        } = spent;
+        // In this order: subtracting a concave or fit share of 0 leaves the other figures
+        // exactly as they were.
+        let interpolation = delta - scallop - cusp - blend - rounding - concave - fit;
         if interpolation < MIN_INTERPOLATION_SHARE * delta {
             // The scallop grows with the square of the feed.
-            let room = (1.0 - MIN_INTERPOLATION_SHARE) * delta - cusp - blend - rounding - concave;
+            let room =
+                (1.0 - MIN_INTERPOLATION_SHARE) * delta - cusp - blend - rounding - concave - fit;
             let hint = if room > 0.0 && scallop > 0.0 {
                 format!(
                     "lower cut.axial_feed to at most {:.4} mm (scallop ∝ feed²)",
@@ -102,6 +127,7 @@ impl Budget {
                 blend,
                 rounding,
                 concave,
+                fit,
                 hint,
             });
         }
@@ -112,6 +138,7 @@ impl Budget {
             blend,
             rounding,
             concave,
+            fit,
             interpolation,
         })
     }

@@ -244,7 +244,7 @@ pub fn evaluate(
                 "the feed scallop, {:.5} mm, leaves interpolation {:.5} mm, less than {:.0} % \
                  of Δ = {} mm",
                 e.scallop,
-                e.delta - e.scallop - e.cusp - e.blend - e.rounding - e.concave,
+                e.delta - e.scallop - e.cusp - e.blend - e.rounding - e.concave - e.fit,
                 MIN_INTERPOLATION_SHARE * 100.0,
                 e.delta
             ),

@@ -21,7 +21,7 @@ mod tests;
 use crate::config::job::{depth_refusal, show_figure, show_number, Job};
 use crate::config::machine::{Dialect, MachineProfile};
 use crate::geometry::linkage::{Linkage, Ring, Whirling};
-use crate::geometry::profile::{ConcaveStretch, Rounding};
+use crate::geometry::profile::ConcaveStretch;
 use crate::plan::table::TableError;
 use crate::post::gcode::format::{decimals_for, MAX_DECIMALS};
 use crate::post::gcode::read_program;
@@ -31,7 +31,7 @@ use crate::program::limits::{check_limits, LimitError};
 use crate::program::timing::cycle_time_s;
 use crate::program::Program;
 use angles::Misfit;
-use budget::{Budget, BudgetError, MIN_INTERPOLATION_SHARE};
+use budget::{Budget, BudgetError, Spent, MIN_INTERPOLATION_SHARE};
 use interference::Interference;
 use path::PathSpec;
 use serde::Serialize;
@@ -87,6 +87,9 @@ pub struct Report {
     /// Material left in concave stretches tighter than the nose but too shallow to refuse
     /// (at most [`CONCAVE_SHARE`] of Δ), mm.
     pub concave_mm: f64,
+    /// How far the profile fitted to rounded or measured points lies from them at most, mm
+    /// (0 for exact points and standard forms): counted in the budget.
+    pub fit_mm: f64,
     /// The profile error the program is held to, mm: the error budget's bound (each side's
     /// shares added where they meet), or, when `measured`, what the sweep engine measured
     /// with what it cannot see added.
@@ -141,7 +144,7 @@ impl Report {
 #[derive(Debug, thiserror::Error)]
 pub enum PlanError {
     /// Concave stretches the nose cannot follow, leaving more material than is tolerated.
-    #[error("{}", concave_message(stretches, *nose, *limit, rounding.as_ref()))]
+    #[error("{}", concave_message(stretches, *nose, *limit, *points))]
     Concave {
         /// The stretches.
         stretches: Vec<ConcaveStretch>,
@@ -149,9 +152,9 @@ pub enum PlanError {
         nose: f64,
         /// The most material a tolerated stretch may leave, mm ([`CONCAVE_SHARE`] of Δ).
         limit: f64,
-        /// When the rounding of the profile's points alone can bend it tighter than the nose:
-        /// the radius it can bend it to across the groove, mm, and how.
-        rounding: Option<(f64, Rounding)>,
+        /// Whether the profile was fitted to points written to decimals: their scatter may
+        /// be wider than the decimals say.
+        points: bool,
     },
     /// An internal-whirling ring too small to enclose the work at this installation angle.
     #[error(
@@ -252,12 +255,7 @@ pub const CONCAVE_SHARE: f64 = 0.01;
 /// thousands, and the deepest say what there is to say.
 const CONCAVE_LISTED: usize = 10;
 
-fn concave_message(
-    stretches: &[ConcaveStretch],
-    nose: f64,
-    limit: f64,
-    rounding: Option<&(f64, Rounding)>,
-) -> String {
+fn concave_message(stretches: &[ConcaveStretch], nose: f64, limit: f64, points: bool) -> String {
     let mut s = format!(
         "the profile has concave stretches tighter than the nose radius {nose} mm, which the \
          insert cannot reach, leaving more than {} mm of material (Δ/{:.0}):",
@@ -293,20 +291,13 @@ fn concave_message(
             stretches.len()
         );
     }
-    match rounding {
-        Some((radius, r)) => {
-            let _ = write!(
-                s,
-                "\nthe profile's points are as close as {} mm but written to decimals that put \
-                 them up to {} mm off the curve they sample: that rounding alone can bend the \
-                 spline through them to a radius of {} mm across the groove, tighter than the \
-                 nose; write the points to more decimals, or fewer of them",
-                show_figure(r.spacing),
-                show_figure(r.err),
-                show_figure(*radius),
-            );
-        }
-        None => s.push_str("\nuse a smaller nose radius or a profile with larger root radii"),
+    s.push_str("\nuse a smaller nose radius or a profile with larger root radii");
+    if points {
+        s.push_str(
+            "; if the points scatter more than their decimals say (a measurement), give how \
+             far they may be off as [groove.profile] fit_tolerance, and the profile is fitted \
+             within it",
+        );
     }
     s
 }
@@ -371,17 +362,11 @@ pub(crate) fn plan_resolved(
         .partition(|c| c.depth_left > limit || c.depth_left.is_nan());
     let concave = shallow.iter().map(|c| c.depth_left).fold(0.0, f64::max);
     if !stretches.is_empty() {
-        // Whether the points' rounding can explain them (it can bend the curve tighter than
-        // the nose), in which case the data, not the groove, must change.
-        let rounding = profile
-            .rounding_radius(p)
-            .filter(|&radius| radius < nose)
-            .zip(profile.rounding());
         return Err(PlanError::Concave {
             stretches,
             nose,
             limit,
-            rounding,
+            points: profile.rounding().is_some(),
         });
     }
     // The installation angle: the job's, or the one with the largest margin in its windows.
@@ -431,7 +416,15 @@ pub(crate) fn plan_resolved(
         job.cut.workpiece_rpm,
         job.cut.ring_rpm,
     );
-    let budget = Budget::new(delta, scallop, cusp, blend, rounding, concave, feed)?;
+    let spent = Spent {
+        scallop,
+        cusp,
+        blend,
+        rounding,
+        concave,
+        fit: profile.fit().map_or(0.0, |fit| fit.deviation),
+    };
+    let budget = Budget::new(delta, spent, feed)?;
     let spec = PathSpec {
         p,
         period: job.period(),
@@ -518,6 +511,7 @@ pub(crate) fn plan_resolved(
         blend_time_added_s: capped.added_s,
         rounding_mm: rounding,
         concave_mm: concave,
+        fit_mm: budget.fit,
         max_error_mm: chosen.max_error,
         measured: chosen.measured,
         delta_mm: delta,

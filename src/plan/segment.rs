@@ -168,12 +168,13 @@ impl Problem<'_> {
     }
 
     /// The rooms the budget leaves interpolation at every sample: Δ less what adds to an
-    /// overcut there (blending, that sample's rounding, the table's accuracy), and less what
+    /// overcut there (blending, the profile's fit, that sample's rounding, the table's
+    /// accuracy), and less what
     /// adds to an undercut there (also its scallop, its cusp and the concave stretches).
     pub fn rooms(&self) -> Rooms {
         let b = self.budget;
         let (cusps, roundings) = (self.cusps(), self.roundings());
-        let over = |i: usize| b.delta - b.blend - roundings[i] - self.table_accuracy;
+        let over = |i: usize| b.delta - b.blend - b.fit - roundings[i] - self.table_accuracy;
         Rooms {
             overcut: (0..cusps.len()).map(over).collect(),
             undercut: (0..cusps.len())
@@ -192,7 +193,7 @@ impl Problem<'_> {
             .iter()
             .enumerate()
             .map(|(i, e)| {
-                let common = self.table_accuracy + b.blend + roundings[i];
+                let common = self.table_accuracy + b.blend + b.fit + roundings[i];
                 let under = e + self.scallops.near(i) + cusps[i] + b.concave;
                 (common - e).max(common + under)
             })

@@ -14,6 +14,7 @@
 //! reported by [`Profile::concave_stretches`].
 
 pub mod points;
+pub mod smoothing;
 pub mod spline;
 pub mod standard;
 #[cfg(test)]
@@ -125,6 +126,22 @@ pub struct Profile {
     period: f64,
     /// For a spline through rounded points, how much the rounding alone can bend it.
     rounding: Option<Rounding>,
+    /// For a curve fitted to points within a band, how far it lies from them.
+    fit: Option<Fit>,
+}
+
+/// How far a profile fitted to rounded or measured points ([`smoothing`]) lies from them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fit {
+    /// The largest distance from a point, mm.
+    pub deviation: f64,
+    /// The file line of the point where it is reached.
+    pub line: usize,
+    /// The widest band a point was fitted within, mm: half its last decimal, or the
+    /// tolerance the job states.
+    pub band: f64,
+    /// How the points spread within their bands.
+    pub spread: smoothing::Spread,
 }
 
 /// How much the rounding of sampled points (to the decimals they are written to) can bend the
@@ -165,26 +182,20 @@ impl Profile {
             offsets,
             period,
             rounding: None,
+            fit: None,
         }
+    }
+
+    /// For a profile fitted to points within a band, how far it lies from them (`None` for
+    /// exact pieces, exact points, and points too few to smooth).
+    pub fn fit(&self) -> Option<Fit> {
+        self.fit
     }
 
     /// For a profile fitted through rounded points, how much the rounding can bend it (`None`
     /// for exact pieces and exact points).
     pub fn rounding(&self) -> Option<Rounding> {
         self.rounding
-    }
-
-    /// The radius the rounding of the points alone can bend the helical surface to, across the
-    /// groove (the direction [`Profile::concave_stretches`] judges), for lead parameter `p`:
-    /// `None` when the points are exact.
-    ///
-    /// A change δ of the transverse curve's second derivative changes the surface's normal
-    /// curvature across the groove by at most `δ·(ρ² + p²)/p²`: the cross direction's first
-    /// fundamental form is at least `p²/(ρ² + p²)` of the tangent's (see `cross_curvature`).
-    pub fn rounding_radius(&self, p: f64) -> Option<f64> {
-        let (_, rho_max) = self.radius_range();
-        self.rounding
-            .map(|r| 1.0 / (r.bend * (rho_max * rho_max + p * p) / (p * p)))
     }
 
     /// A profile from the axial pieces of one period (ordered by increasing z), for lead

@@ -15,8 +15,8 @@
 //! docs/benchmarks.md), and none overflows on absurd values: a point at 10³⁰⁸ is named by its
 //! own line.
 
-use super::spline::Spline;
-use super::{Piece, Profile, Rounding};
+use super::smoothing::{self, Spread};
+use super::{Fit, Piece, Profile, Rounding};
 use num_complex::Complex64;
 use std::f64::consts::PI;
 use std::fmt;
@@ -232,7 +232,8 @@ struct Point {
     mirrored: bool,
 }
 
-/// Fit the periodic spline profile through `rows`, after validating them.
+/// Fit the periodic spline profile to `rows`, after validating them, within the points'
+/// rounding ([`profile_within`] with no tolerance).
 ///
 /// `p` is the lead parameter (needed to turn axial points into transverse ones) and `starts`
 /// the number of starts (the period is `2π / starts`).
@@ -242,6 +243,21 @@ pub fn profile(
     mirror: bool,
     p: f64,
     starts: u32,
+) -> Result<Profile, PointsError> {
+    profile_within(rows, section, mirror, p, starts, None)
+}
+
+/// Fit the periodic spline profile to `rows`, after validating them: within each point's
+/// rounding (half its last decimal), or within `tolerance` mm of each (measured points,
+/// their scatter random across it) where that is wider; see [`super::smoothing`]. The
+/// outlier check allows the same band.
+pub fn profile_within(
+    rows: &[Row],
+    section: Section,
+    mirror: bool,
+    p: f64,
+    starts: u32,
+    tolerance: Option<f64>,
 ) -> Result<Profile, PointsError> {
     let period = 2.0 * PI / f64::from(starts);
     let needed = 3;
@@ -259,10 +275,19 @@ pub fn profile(
             }
         }
     }
-    // The data's own resolution, each column on its own.
+    // The data's own resolution, each column on its own; none in a column of evenly
+    // spaced values, which is the one the points were sampled along (z = 0, 0.5, 1, …):
+    // its values are where the points are, not readings rounded to that many decimals.
+    let resolution = |values: Vec<f64>| {
+        if evenly_spaced(&values) {
+            0.0
+        } else {
+            half_unit(values.into_iter())
+        }
+    };
     let (half_a, half_b) = (
-        half_unit(rows.iter().map(|r| r.a)),
-        half_unit(rows.iter().map(|r| r.b)),
+        resolution(rows.iter().map(|r| r.a).collect()),
+        resolution(rows.iter().map(|r| r.b).collect()),
     );
     let mut points = Vec::with_capacity(rows.len());
     for row in rows {
@@ -280,7 +305,7 @@ pub fn profile(
         points.push(Point {
             row: *row,
             z,
-            err,
+            err: err.max(tolerance.unwrap_or(0.0)),
             mirrored: false,
         });
     }
@@ -333,9 +358,35 @@ pub fn profile(
         full.reverse();
     }
     check_outliers(&full, period, section, p)?;
-    let spline = Spline::periodic(&full.iter().map(|q| q.z).collect::<Vec<_>>(), period);
-    let mut fitted = Profile::new(vec![Piece::Spline(spline)], period);
-    fitted.rounding = rounding(&full, period);
+    let zs: Vec<Complex64> = full.iter().map(|q| q.z).collect();
+    let bends = rounding(&full, period);
+    // Rounding matters where it can bend the curve through the points by a hundredth of
+    // its mean curvature (the period's turn over the curve's length): dense points written
+    // to few decimals. Sparse ones keep the curve through them: between knots far apart,
+    // smoothing would move the curve by more than it moves the points.
+    let length: f64 = zs
+        .iter()
+        .zip(zs.iter().skip(1))
+        .map(|(a, b)| (b - a).norm())
+        .sum();
+    let matters = bends.is_some_and(|b| b.bend > 0.01 * period / length);
+    let spread = match tolerance {
+        Some(_) => Some(Spread::Scatter),
+        None => matters.then_some(Spread::Rounding),
+    };
+    let band: Vec<f64> = full.iter().map(|q| q.err).collect();
+    let curve = match spread {
+        Some(spread) => smoothing::fit(&zs, &band, spread, period),
+        None => smoothing::fit(&zs, &vec![0.0; zs.len()], Spread::Rounding, period),
+    };
+    let mut fitted = Profile::new(vec![Piece::Spline(curve.spline)], period);
+    fitted.rounding = bends;
+    fitted.fit = spread.map(|spread| Fit {
+        deviation: curve.deviation,
+        line: full[curve.worst].row.line,
+        band: band.iter().copied().fold(0.0, f64::max),
+        spread,
+    });
     Ok(fitted)
 }
 
@@ -397,6 +448,20 @@ fn half(z: Complex64) -> Complex64 {
 /// size), so a resolution that fine could not change a verdict; below it the check on the
 /// value itself stops being exact (|v|·10ᵈ nears 2⁵²).
 const MAX_DECIMALS: i32 = 12;
+
+/// Whether `values` step by one amount from first to last, to the precision their size
+/// allows (a sampling grid read back from its decimals: 0.0125 and 0.025 are exact).
+fn evenly_spaced(values: &[f64]) -> bool {
+    let &[first, second, ..] = values else {
+        return false;
+    };
+    let step = second - first;
+    let size = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    step != 0.0
+        && values
+            .windows(2)
+            .all(|pair| ((pair[1] - pair[0]) - step).abs() <= 1e-12 * size)
+}
 
 /// The resolution of a column of values: half a unit in the last of the fewest decimals
 /// (at most [`MAX_DECIMALS`]) that write every value exactly, or 0 when some value needs more
@@ -932,6 +997,7 @@ impl Cubic {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::profile::spline::Spline;
     use std::f64::consts::TAU;
 
     const HAN_LIU: &str = include_str!(concat!(

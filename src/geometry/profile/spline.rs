@@ -41,6 +41,25 @@ impl Spline {
         let n = points.len();
         assert!(n >= 3, "a periodic spline needs at least 3 points");
         let turn = Complex64::from_polar(1.0, period);
+        let h: Vec<f64> = (0..n)
+            .map(|i| {
+                let next = if i + 1 == n {
+                    points[0] * turn
+                } else {
+                    points[i + 1]
+                };
+                (next - points[i]).norm()
+            })
+            .collect();
+        Spline::periodic_on(points, &h, period)
+    }
+
+    /// The periodic spline through `points` at knots `h` apart (the last knot `h[n − 1]`
+    /// before the first one turned by `period`), rather than at their chord lengths.
+    pub(super) fn periodic_on(points: &[Complex64], h: &[f64], period: f64) -> Spline {
+        let n = points.len();
+        assert!(n >= 3, "a periodic spline needs at least 3 points");
+        let turn = Complex64::from_polar(1.0, period);
         let at = |i: usize| {
             if i == n {
                 points[0] * turn
@@ -48,7 +67,6 @@ impl Spline {
                 points[i]
             }
         };
-        let h: Vec<f64> = (0..n).map(|i| (at(i + 1) - at(i)).norm()).collect();
         let slope: Vec<Complex64> = (0..n).map(|i| (at(i + 1) - at(i)) / h[i]).collect();
         // Row i: h[i-1] M[i-1] + 2 (h[i-1] + h[i]) M[i] + h[i] M[i+1] = 6 (slope[i] - slope[i-1]),
         // with M[-1] = M[n-1] / turn and M[n] = M[0] * turn; slope[-1] = slope[n-1] / turn.
@@ -73,7 +91,25 @@ impl Spline {
         second.push(second[0] * turn);
         let mut pts = points.to_vec();
         pts.push(at(n));
-        Spline::from_parts(pts, second, &h)
+        Spline::from_parts(pts, second, h)
+    }
+
+    /// The periodic spline with `values` at knots `h` apart and second derivatives `second`
+    /// there, closing onto the first knot turned by `period` radians: a smoothing fit's
+    /// ([`super::smoothing`]), whose values and second derivatives satisfy the spline's
+    /// equations by construction.
+    pub(super) fn periodic_with(
+        values: &[Complex64],
+        second: &[Complex64],
+        h: &[f64],
+        period: f64,
+    ) -> Spline {
+        let turn = Complex64::from_polar(1.0, period);
+        let mut points = values.to_vec();
+        points.push(values[0] * turn);
+        let mut second = second.to_vec();
+        second.push(second[0] * turn);
+        Spline::from_parts(points, second, h)
     }
 
     fn from_parts(points: Vec<Complex64>, second: Vec<Complex64>, h: &[f64]) -> Spline {

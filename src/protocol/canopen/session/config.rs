@@ -16,6 +16,10 @@ pub struct SessionConfig {
     /// The drives of X, Z and C, in that order; distinct.
     pub nodes: [NodeId; 3],
     /// How long to wait for boot-up messages, before and after NMT reset communication.
+    /// CiA 301 sets no time for a reset of communication; a drive's takes milliseconds,
+    /// but the master waits on its host's clock, and the default's two seconds (half a
+    /// second, as before, was lost to a host busy elsewhere: the job refused for drives
+    /// that were there) cost a start nothing it would notice.
     pub boot_wait: Duration,
     /// How long an SDO transfer may take. A drive's firmware answers SDOs beside its
     /// control cycle, and neither CiA 301 nor a drive says how soon; the configuration is
@@ -122,7 +126,7 @@ impl Default for SessionConfig {
         let node = |id| NodeId::new(id).expect("1-3 are node ids");
         SessionConfig {
             nodes: [node(1), node(2), node(3)],
-            boot_wait: Duration::from_millis(500),
+            boot_wait: Duration::from_secs(2),
             sdo_timeout: Duration::from_secs(1),
             heartbeat_ms: 50,
             heartbeat_timeout: Duration::from_millis(150),
