@@ -121,23 +121,114 @@ fn a_million_points_at_ten_decimals_plan_within_delta() {
 }
 
 #[test]
-fn points_packed_closer_than_their_decimals_resolve_are_refused_naming_the_rounding() {
+fn points_packed_closer_than_their_decimals_resolve_are_fitted_within_them_and_plan() {
     // 20 000 points 2.5 µm apart at 4 decimals: rounding moves them by up to 0.07 µm, a
-    // twenty-fifth of their spacing, so the spline through them kinks at every point. Not an
-    // outlier (that verdict took a minute and was wrong): the decimals are too few for the
-    // spacing, and the refusal says so.
-    let dir = tempfile::tempdir().unwrap();
-    let job = job(dir.path(), &half_period_csv(20_000, 4), |t| t);
+    // twenty-fifth of their spacing, so a spline through them would kink at every point
+    // (they were refused for concave stretches). Fitted within their rounding, they plan,
+    // and not as outliers.
+    plans_within_delta(20_000, 4);
+}
+
+/// `n` points of one whole period (0 ≤ φ < 180°) of ρ = 30 − 4·cos 2φ, each moved by
+/// `scatter(k)` along its radius, written to `decimals`, after an `x,y` header.
+fn period_csv(n: usize, decimals: usize, scatter: impl Fn(usize) -> f64) -> String {
+    let mut csv = String::with_capacity(n * (2 * decimals + 8));
+    csv.push_str("x,y\n");
+    for k in 0..n {
+        let phi = std::f64::consts::PI * k as f64 / n as f64;
+        let rho = 30.0 - 4.0 * (2.0 * phi).cos() + scatter(k);
+        csv.push_str(&format!(
+            "{:.decimals$},{:.decimals$}\n",
+            rho * phi.cos(),
+            rho * phi.sin()
+        ));
+    }
+    csv
+}
+
+/// The double-start job in `dir` on the whole period of `csv`, `extra` added to its
+/// `[groove.profile]`; planned, its report, and `whirl verify`'s verdict on the program.
+fn plan_and_verify(dir: &Path, csv: &str, extra: &str) -> (serde_json::Value, bool) {
+    let job = job(dir, csv, |t| {
+        t.replace("mirror = true", &format!("mirror = false\n{extra}"))
+    });
     let run = plan(&job);
-    assert!(!run.ok && run.report.is_none(), "must be refused");
-    assert!(!run.stderr.contains("outlier"), "{}", run.stderr);
+    assert!(run.ok, "{}", run.stderr);
+    let verified = util::whirl(&[
+        std::ffi::OsStr::new("verify"),
+        dir.join("p.nc").as_os_str(),
+        std::ffi::OsStr::new("--job"),
+        job.as_os_str(),
+        std::ffi::OsStr::new("--report"),
+        dir.join("v.json").as_os_str(),
+    ]);
+    let said = String::from_utf8_lossy(&verified.stdout);
+    (
+        run.report.unwrap(),
+        verified.status.success() && said.contains("within"),
+    )
+}
+
+#[test]
+fn the_double_starts_curve_at_four_decimals_plans_as_the_exact_curve_from_2000_and_200000_points() {
+    // Issue 23: at the exact curve's installation angle ±0.05°, within 5 % of its segments,
+    // within Δ by whirl verify; the fit's distance from the points counted.
+    let dir = tempfile::tempdir().unwrap();
+    let (exact, verified) = plan_and_verify(dir.path(), &period_csv(2000, 12, |_| 0.0), "");
+    assert!(verified);
+    let angle = |r: &serde_json::Value| r["installation_angle_deg"].as_f64().unwrap();
+    let segments = |r: &serde_json::Value| r["segments"].as_f64().unwrap();
+    for n in [2000, 200_000] {
+        let dir = tempfile::tempdir().unwrap();
+        let (rounded, verified) = plan_and_verify(dir.path(), &period_csv(n, 4, |_| 0.0), "");
+        assert!(verified, "{n} points");
+        assert!(
+            (angle(&rounded) - angle(&exact)).abs() <= 0.05,
+            "{n}: {rounded}"
+        );
+        assert!(
+            (segments(&rounded) / segments(&exact) - 1.0).abs() <= 0.05,
+            "{n}: {rounded}"
+        );
+        // Half the 4th decimal in x and y at most.
+        let fit = rounded["fit_mm"].as_f64().unwrap();
+        assert!(
+            fit > 0.0 && fit <= 0.00005f64.hypot(0.00005),
+            "{n}: {rounded}"
+        );
+    }
+}
+
+#[test]
+fn a_scan_with_two_micrometres_of_scatter_plans_with_its_tolerance_stated() {
+    // 4 000 points 24 µm apart, each off the curve by up to ±2 µm (a fixed sequence of a
+    // linear congruential generator), written to 4 decimals as a measuring machine would.
+    let scatter = |k: usize| {
+        let x = (k as u64)
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((x >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) * 0.002
+    };
+    let csv = period_csv(4000, 4, scatter);
+    // Fitted within the 4th decimal alone, the scatter stays in the curve: its kinks are
+    // tighter than the nose, and the refusal names the tolerance to state.
+    let dir = tempfile::tempdir().unwrap();
+    let job = job(dir.path(), &csv, |t| {
+        t.replace("mirror = true", "mirror = false")
+    });
+    let run = plan(&job);
     assert!(
-        run.stderr.contains("concave") && run.stderr.contains("more decimals, or fewer of them"),
+        !run.ok && run.stderr.contains("fit_tolerance"),
         "{}",
         run.stderr
     );
-    // Written to 8 decimals, the same points plan.
-    plans_within_delta(20_000, 8);
+    // With the scan's tolerance (2 µm, plus the 4th decimal's rounding) it plans within Δ,
+    // and the report says how far the fit lies from the points: within that tolerance.
+    let dir = tempfile::tempdir().unwrap();
+    let (report, verified) = plan_and_verify(dir.path(), &csv, "fit_tolerance = 0.0021");
+    assert!(verified, "{report}");
+    let fit = report["fit_mm"].as_f64().unwrap();
+    assert!(fit > 0.0 && fit <= 0.0021, "{report}");
 }
 
 #[test]

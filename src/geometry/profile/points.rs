@@ -153,7 +153,9 @@ pub enum PointsError {
     #[error(
         "{row} is an outlier: it lies {} mm off the curve through its neighbours (which passes \
          ({near_a:.3}, {near_b:.3}) there), more than the {} mm that the spacing and the \
-         decimals of the points allow, so the profile's curvature spikes",
+         decimals of the points allow, so the profile's curvature spikes (if the points are a \
+         measurement that scatters more than its decimals say, state how far they may be off \
+         as [groove.profile] fit_tolerance)",
         mm(*off_mm),
         mm(*limit_mm)
     )]
@@ -1301,7 +1303,7 @@ mod tests {
                     "{absurd:?} on line {}: {text}",
                     k + 2
                 );
-                assert!(text.len() < 400, "numbers spelt out: {text}");
+                assert!(text.len() < 600, "numbers spelt out: {text}");
             }
         }
     }
