@@ -138,3 +138,47 @@ fn dense_profile(bencher: Bencher, n: usize) {
         )
     });
 }
+
+/// `n` points over one whole period of the double-start groove at 4 decimals, as a CAD
+/// export at its default precision writes them, as the text of a points file.
+fn period_csv_4(n: usize) -> String {
+    let mut csv = String::from("x,y\n");
+    for k in 0..n {
+        let phi = PI * k as f64 / n as f64;
+        let rho = 30.0 - 4.0 * (2.0 * phi).cos();
+        csv.push_str(&format!("{:.4},{:.4}\n", rho * phi.cos(), rho * phi.sin()));
+    }
+    csv
+}
+
+/// Reading `n` points written to 4 decimals and fitting the profile within their rounding
+/// (`geometry::profile::smoothing`), validation included: the profile alone.
+#[divan::bench(args = [2_000, 200_000], sample_count = 5)]
+fn fit_rounded_points(bencher: Bencher, n: usize) {
+    let csv = period_csv_4(n);
+    let job = example("double-start");
+    bencher.bench(|| {
+        let rows = points::read_csv(black_box(&csv)).unwrap();
+        black_box(points::profile(&rows, Section::Transverse, false, job.p(), 2).unwrap())
+    });
+}
+
+/// The same points read, fitted and the double-start job planned from them, as `whirl plan`
+/// does but for the file reads and writes (issue 23: 200 000 points under 5 s).
+#[divan::bench(args = [2_000, 200_000], sample_count = 3)]
+fn plan_rounded_points(bencher: Bencher, n: usize) {
+    let csv = period_csv_4(n);
+    let job = example("double-start");
+    let machine = MachineProfile::builtin_sim().unwrap();
+    bencher.bench(|| {
+        let rows = points::read_csv(black_box(&csv)).unwrap();
+        let mut job = job.clone();
+        job.profile = points::profile(&rows, Section::Transverse, false, job.p(), 2).unwrap();
+        black_box(
+            whirl::judge::refine::plan(&job, &machine)
+                .unwrap()
+                .report
+                .segments,
+        )
+    });
+}
