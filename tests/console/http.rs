@@ -1,8 +1,18 @@
-//! A plain HTTP/1.1 client over a TCP stream, enough for the console's API and for
-//! chromedriver's WebDriver endpoints: one request a connection, the answer read to its end.
+//! HTTP requests as the console's tests mean them, on reqwest: to the console's API (the
+//! attacks among them: a forged `Host`, any `Origin` or `Sec-Fetch-Site`, cookies) and to
+//! chromedriver's status.
+//!
+//! The server must see the request the test wrote and nothing the client thought of: so
+//! redirects are not followed (a login's `303` is the answer a test checks), there is no
+//! cookie store (a cookie goes only where a test puts it), no proxy from the environment,
+//! and a `Host` given is sent as given (hyper only fills it in when it is missing).
+//! reqwest adds `Accept: */*` and nothing else; the console does not read it.
 
-use std::io::{Read, Write};
-use std::net::{SocketAddr, TcpStream};
+use reqwest::blocking::Client;
+use reqwest::header::{HeaderName, HeaderValue, CONTENT_TYPE};
+use reqwest::{redirect, Method};
+use std::net::SocketAddr;
+use std::sync::OnceLock;
 use std::time::Duration;
 
 /// An answer.
@@ -27,6 +37,25 @@ impl Answer {
     }
 }
 
+/// The one client of the test process (reqwest's blocking client runs its own runtime on a
+/// thread of its own, so the tests stay synchronous).
+fn client() -> &'static Client {
+    static CLIENT: OnceLock<Client> = OnceLock::new();
+    CLIENT.get_or_init(|| {
+        Client::builder()
+            .redirect(redirect::Policy::none())
+            .no_proxy()
+            // One request a connection: a request after a refusal (the console's rate limit,
+            // a killed server) starts afresh, as each test's requests always have.
+            .pool_max_idle_per_host(0)
+            .connect_timeout(Duration::from_secs(10))
+            // Generous: the whole answer of a busy console on a busy host, not a measurement.
+            .timeout(Duration::from_secs(120))
+            .build()
+            .expect("an HTTP client")
+    })
+}
+
 /// Sends `method path` to `addr` with `headers` and a `body` (JSON unless a content type
 /// is among the headers).
 pub fn request(
@@ -36,85 +65,40 @@ pub fn request(
     headers: &[(&str, &str)],
     body: Option<&str>,
 ) -> Answer {
-    let mut stream = TcpStream::connect_timeout(&addr, Duration::from_secs(10))
-        .unwrap_or_else(|e| panic!("cannot connect to {addr}: {e}"));
-    stream
-        .set_read_timeout(Some(Duration::from_secs(120)))
-        .unwrap();
-    let mut text = format!("{method} {path} HTTP/1.1\r\nConnection: close\r\n");
-    // The address as the Host, unless the caller names another (a rebound name).
-    if !headers.iter().any(|(n, _)| n.eq_ignore_ascii_case("host")) {
-        text.push_str(&format!("Host: {addr}\r\n"));
-    }
+    let method = Method::from_bytes(method.as_bytes())
+        .unwrap_or_else(|e| panic!("not an HTTP method ({e}): {method}"));
+    let mut builder = client().request(method.clone(), format!("http://{addr}{path}"));
     for (name, value) in headers {
-        text.push_str(&format!("{name}: {value}\r\n"));
+        let name = HeaderName::from_bytes(name.as_bytes())
+            .unwrap_or_else(|e| panic!("not a header name ({e}): {name}"));
+        let value = HeaderValue::from_str(value)
+            .unwrap_or_else(|e| panic!("not a header value ({e}): {value}"));
+        builder = builder.header(name, value);
     }
     if let Some(body) = body {
         if !headers
             .iter()
-            .any(|(n, _)| n.eq_ignore_ascii_case("content-type"))
+            .any(|(n, _)| n.eq_ignore_ascii_case(CONTENT_TYPE.as_str()))
         {
-            text.push_str("Content-Type: application/json\r\n");
+            builder = builder.header(CONTENT_TYPE, "application/json");
         }
-        text.push_str(&format!("Content-Length: {}\r\n\r\n{body}", body.len()));
-    } else {
-        text.push_str("Content-Length: 0\r\n\r\n");
+        builder = builder.body(body.to_owned());
     }
-    stream.write_all(text.as_bytes()).unwrap();
-    // Read until the answer is whole: a server may keep the connection open whatever the
-    // request said.
-    let mut raw = Vec::new();
-    let mut buf = [0u8; 8192];
-    loop {
-        let n = stream.read(&mut buf).unwrap();
-        raw.extend_from_slice(&buf[..n]);
-        if n == 0 || whole(&raw) {
-            return parse(&raw);
-        }
-    }
-}
-
-/// Whether `raw` holds a whole answer: its head, and the body its length or its last
-/// chunk says.
-fn whole(raw: &[u8]) -> bool {
-    let Some(split) = raw.windows(4).position(|w| w == b"\r\n\r\n") else {
-        return false;
-    };
-    let head = String::from_utf8_lossy(&raw[..split]).to_ascii_lowercase();
-    let body = &raw[split + 4..];
-    if let Some(length) = head
-        .lines()
-        .find_map(|l| l.strip_prefix("content-length:"))
-        .and_then(|v| v.trim().parse::<usize>().ok())
-    {
-        return body.len() >= length;
-    }
-    head.contains("transfer-encoding: chunked") && body.ends_with(b"0\r\n\r\n")
-}
-
-fn parse(raw: &[u8]) -> Answer {
-    let split = raw
-        .windows(4)
-        .position(|w| w == b"\r\n\r\n")
-        .expect("an HTTP answer has a head");
-    let head = String::from_utf8_lossy(&raw[..split]);
-    let mut lines = head.lines();
-    let status = lines
-        .next()
-        .and_then(|l| l.split_whitespace().nth(1))
-        .and_then(|s| s.parse().ok())
-        .expect("a status line");
-    let headers: Vec<(String, String)> = lines
-        .filter_map(|l| l.split_once(':'))
-        .map(|(n, v)| (n.trim().to_owned(), v.trim().to_owned()))
-        .collect();
-    let mut body = raw[split + 4..].to_vec();
-    let chunked = headers
+    let answer = builder
+        .send()
+        .unwrap_or_else(|e| panic!("{method} http://{addr}{path}: {e}"));
+    let status = answer.status().as_u16();
+    let headers = answer
+        .headers()
         .iter()
-        .any(|(n, v)| n.eq_ignore_ascii_case("transfer-encoding") && v.contains("chunked"));
-    if chunked {
-        body = dechunk(&body);
-    }
+        .map(|(n, v)| {
+            let value = String::from_utf8_lossy(v.as_bytes()).into_owned();
+            (n.as_str().to_owned(), value)
+        })
+        .collect();
+    let body = answer
+        .bytes()
+        .unwrap_or_else(|e| panic!("{method} http://{addr}{path}: the body: {e}"));
     Answer {
         status,
         headers,
@@ -122,21 +106,93 @@ fn parse(raw: &[u8]) -> Answer {
     }
 }
 
-fn dechunk(mut raw: &[u8]) -> Vec<u8> {
-    let mut out = Vec::new();
-    loop {
-        let Some(end) = raw.windows(2).position(|w| w == b"\r\n") else {
-            return out;
-        };
-        let size = std::str::from_utf8(&raw[..end])
-            .ok()
-            .and_then(|s| usize::from_str_radix(s.split(';').next()?.trim(), 16).ok())
-            .unwrap_or(0);
-        if size == 0 {
-            return out;
+/// A server of one connection on loopback: the request it read (its head, lower-cased),
+/// once it has answered `answer`.
+fn one_request(answer: &'static str) -> (SocketAddr, std::thread::JoinHandle<String>) {
+    use std::io::{Read, Write};
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    let server = std::thread::spawn(move || {
+        let (mut stream, _) = listener.accept().unwrap();
+        let mut raw = Vec::new();
+        let mut buf = [0u8; 4096];
+        while !raw.windows(4).any(|w| w == b"\r\n\r\n") {
+            let n = stream.read(&mut buf).unwrap();
+            assert!(n > 0, "the request ended before its head did");
+            raw.extend_from_slice(&buf[..n]);
         }
-        let start = end + 2;
-        out.extend_from_slice(&raw[start..(start + size).min(raw.len())]);
-        raw = &raw[(start + size + 2).min(raw.len())..];
+        stream.write_all(answer.as_bytes()).unwrap();
+        String::from_utf8_lossy(&raw).to_ascii_lowercase()
+    });
+    (addr, server)
+}
+
+/// The values of header `name` in a request's lower-cased head.
+fn values<'a>(head: &'a str, name: &str) -> Vec<&'a str> {
+    head.lines()
+        .filter_map(|l| l.split_once(':'))
+        .filter(|(n, _)| *n == name)
+        .map(|(_, v)| v.trim())
+        .collect()
+}
+
+#[test]
+fn a_forged_host_and_origin_are_sent_as_given_and_a_redirect_is_the_answer() {
+    let (addr, server) = one_request(
+        "HTTP/1.1 303 See Other\r\nLocation: /elsewhere\r\nSet-Cookie: s=1\r\n\
+         Content-Length: 0\r\nConnection: close\r\n\r\n",
+    );
+    let answer = request(
+        addr,
+        "POST",
+        "/api/runs/lathe%207/hold",
+        &[
+            ("Host", "evil.example:80"),
+            ("Origin", "http://evil.example"),
+        ],
+        Some("{}"),
+    );
+    let head = server.join().unwrap();
+    assert!(
+        head.starts_with("post /api/runs/lathe%207/hold http/1.1\r\n"),
+        "{head}"
+    );
+    assert_eq!(values(&head, "host"), ["evil.example:80"], "{head}");
+    assert_eq!(values(&head, "origin"), ["http://evil.example"], "{head}");
+    assert_eq!(
+        values(&head, "content-type"),
+        ["application/json"],
+        "{head}"
+    );
+    // A 303 followed would have been a second request, to a server that takes none.
+    assert_eq!(answer.status, 303);
+    assert_eq!(answer.header("location"), Some("/elsewhere"));
+}
+
+#[test]
+fn a_plain_request_names_its_address_and_carries_no_origin_or_cookie() {
+    // A cookie set before is not kept: the client has no cookie store. (A store would send
+    // it to the second server too: cookies are not kept apart by port, RFC 6265 § 8.5.)
+    let (addr, server) = one_request(
+        "HTTP/1.1 200 OK\r\nSet-Cookie: s=1\r\nContent-Length: 2\r\nConnection: close\r\n\r\nok",
+    );
+    assert_eq!(request(addr, "GET", "/", &[], None).body, "ok");
+    server.join().unwrap();
+    let (addr, server) = one_request(
+        "HTTP/1.1 200 OK\r\nTransfer-Encoding: chunked\r\nConnection: close\r\n\r\n\
+         2\r\n{}\r\n0\r\n\r\n",
+    );
+    let answer = request(addr, "GET", "/api/runs", &[], None);
+    let head = server.join().unwrap();
+    assert_eq!(values(&head, "host"), [addr.to_string()], "{head}");
+    for absent in [
+        "origin",
+        "cookie",
+        "sec-fetch-site",
+        "referer",
+        "content-type",
+    ] {
+        assert!(values(&head, absent).is_empty(), "{absent}: {head}");
     }
+    assert_eq!(answer.json(), serde_json::json!({}));
 }

@@ -1,18 +1,20 @@
-//! Enough of the W3C WebDriver protocol to drive a headless Chromium through chromedriver:
-//! open a page, find and click elements, run a script, take a screenshot.
+//! A headless Chromium driven through chromedriver (W3C WebDriver) with fantoccini: open a
+//! page, find and click elements, run a script, take a screenshot. The tests are
+//! synchronous; a session owns the runtime its client runs on.
 
-use super::http::request;
+use fantoccini::elements::Element;
+use fantoccini::{Client, ClientBuilder, Locator};
+use hyper_util::client::legacy::connect::HttpConnector;
 use serde_json::{json, Value};
+use std::future::Future;
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
-
-/// The key under which WebDriver names an element.
-const ELEMENT: &str = "element-6066-11e4-a52e-4f735466cecf";
+use tokio::runtime::Runtime;
 
 /// A browser session.
 pub struct Session {
-    driver: SocketAddr,
-    id: String,
+    client: Client,
+    runtime: Runtime,
 }
 
 impl Session {
@@ -32,103 +34,93 @@ impl Session {
             "--window-size=1280,1100",
         ];
         all.extend_from_slice(args);
-        let capabilities = json!({"capabilities": {"alwaysMatch": {
+        let capabilities = json!({
             "browserName": "chrome",
             "goog:chromeOptions": { "binary": binary, "args": all },
-        }}});
-        let answer = request(
-            driver,
-            "POST",
-            "/session",
-            &[],
-            Some(&capabilities.to_string()),
-        );
-        let value = answer.json();
-        let id = value["value"]["sessionId"]
-            .as_str()
-            .unwrap_or_else(|| panic!("chromedriver made no session: {}", answer.body))
-            .to_owned();
-        Session { driver, id }
+        });
+        let Value::Object(capabilities) = capabilities else {
+            unreachable!("an object")
+        };
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("a runtime");
+        // chromedriver speaks plain HTTP on loopback: no TLS connector.
+        let client = runtime
+            .block_on(
+                ClientBuilder::new(HttpConnector::new())
+                    .capabilities(capabilities)
+                    .connect(&format!("http://{driver}")),
+            )
+            .unwrap_or_else(|e| panic!("chromedriver made no session: {e}"));
+        Session { client, runtime }
     }
 
-    fn call(&self, method: &str, path: &str, body: Option<Value>) -> Value {
-        let path = format!("/session/{}{path}", self.id);
-        let body = body.map(|b| b.to_string());
-        let answer = request(self.driver, method, &path, &[], body.as_deref());
-        let value = answer.json();
-        assert!(
-            answer.status == 200,
-            "WebDriver {method} {path}: {}",
-            answer.body
-        );
-        value["value"].clone()
+    /// Runs a WebDriver command to its end; what it gave, or a panic naming `what` failed.
+    fn run<T, E: std::fmt::Display>(
+        &self,
+        what: &str,
+        command: impl Future<Output = Result<T, E>>,
+    ) -> T {
+        self.runtime
+            .block_on(command)
+            .unwrap_or_else(|e| panic!("WebDriver {what}: {e}"))
     }
 
     /// Opens `url`.
     pub fn open(&self, url: &str) {
-        self.call("POST", "/url", Some(json!({ "url": url })));
+        self.run(&format!("open {url}"), self.client.goto(url));
     }
 
-    /// The element `css` selects (the first).
+    /// The element `css` selects (the first): its WebDriver id.
     pub fn find(&self, css: &str) -> String {
-        let value = self.call(
-            "POST",
-            "/element",
-            Some(json!({"using": "css selector", "value": css})),
-        );
-        value[ELEMENT].as_str().expect("an element").to_owned()
+        let found = self.run(&format!("find {css}"), self.client.find(Locator::Css(css)));
+        found.element_id().into()
+    }
+
+    /// What `css` selects, to act on.
+    fn element(&self, css: &str) -> Element {
+        Element::from_element_id(self.client.clone(), self.find(css).into())
     }
 
     /// How many elements `css` selects.
     pub fn count(&self, css: &str) -> usize {
-        self.call(
-            "POST",
-            "/elements",
-            Some(json!({"using": "css selector", "value": css})),
-        )
-        .as_array()
-        .map_or(0, Vec::len)
+        let found = self.client.find_all(Locator::Css(css));
+        self.run(&format!("find all {css}"), found).len()
     }
 
     /// Sizes the browser's window, CSS pixels.
     pub fn resize(&self, width: u32, height: u32) {
-        self.call(
-            "POST",
-            "/window/rect",
-            Some(json!({"width": width, "height": height})),
-        );
+        let resized = self.client.set_window_size(width, height);
+        self.run(&format!("resize to {width}×{height}"), resized);
     }
 
-    /// Goes into the page's frame number `index` (`None`: back to the top page).
+    /// Goes into the page's frame number `index` (`None`: back out of the frame, to the
+    /// page that holds it).
     pub fn frame(&self, index: Option<u64>) {
-        self.call("POST", "/frame", Some(json!({ "id": index })));
+        match index {
+            Some(index) => {
+                let index = u16::try_from(index).expect("a frame's index, at most 65535");
+                self.run(&format!("frame {index}"), self.client.enter_frame(index));
+            }
+            None => self.run("parent frame", self.client.enter_parent_frame()),
+        }
     }
 
     /// Clicks what `css` selects, as a user would.
     pub fn click(&self, css: &str) {
-        let element = self.find(css);
-        self.call(
-            "POST",
-            &format!("/element/{element}/click"),
-            Some(json!({})),
-        );
+        self.run(&format!("click {css}"), self.element(css).click());
     }
 
     /// Whether what `css` selects is shown.
     pub fn displayed(&self, css: &str) -> bool {
-        let element = self.find(css);
-        self.call("GET", &format!("/element/{element}/displayed"), None)
-            .as_bool()
-            .unwrap_or(false)
+        let element = self.element(css);
+        self.run(&format!("displayed {css}"), element.is_displayed())
     }
 
     /// Runs `script` in the page; its return value.
     pub fn script(&self, script: &str) -> Value {
-        self.call(
-            "POST",
-            "/execute/sync",
-            Some(json!({"script": script, "args": []})),
-        )
+        self.run(script, self.client.execute(script, Vec::new()))
     }
 
     /// The text of the element with id `id`.
@@ -167,58 +159,13 @@ impl Session {
 
     /// A screenshot of the page, PNG.
     pub fn screenshot(&self) -> Vec<u8> {
-        let value = self.call("GET", "/screenshot", None);
-        base64(value.as_str().expect("a screenshot"))
+        self.run("screenshot", self.client.screenshot())
     }
 }
 
 impl Drop for Session {
     fn drop(&mut self) {
-        let path = format!("/session/{}", self.id);
-        request(self.driver, "DELETE", &path, &[], None);
-    }
-}
-
-/// Decodes standard base64 (what WebDriver sends screenshots in).
-fn base64(text: &str) -> Vec<u8> {
-    let value = |c: u8| match c {
-        b'A'..=b'Z' => c - b'A',
-        b'a'..=b'z' => c - b'a' + 26,
-        b'0'..=b'9' => c - b'0' + 52,
-        b'+' => 62,
-        b'/' => 63,
-        _ => panic!("not base64: {c}"),
-    };
-    let digits: Vec<u8> = text
-        .bytes()
-        .filter(|c| !c.is_ascii_whitespace() && *c != b'=')
-        .map(value)
-        .collect();
-    digits
-        .chunks(4)
-        .flat_map(|chunk| {
-            let n = chunk
-                .iter()
-                .enumerate()
-                .fold(0u32, |n, (i, &d)| n | u32::from(d) << (18 - 6 * i));
-            let bytes = [(n >> 16) as u8, (n >> 8) as u8, n as u8];
-            bytes.into_iter().take(chunk.len().saturating_sub(1))
-        })
-        .collect()
-}
-
-#[test]
-fn base64_decodes_as_the_standard_says() {
-    // RFC 4648's test vectors.
-    for (text, plain) in [
-        ("", ""),
-        ("Zg==", "f"),
-        ("Zm8=", "fo"),
-        ("Zm9v", "foo"),
-        ("Zm9vYg==", "foob"),
-        ("Zm9vYmE=", "fooba"),
-        ("Zm9vYmFy", "foobar"),
-    ] {
-        assert_eq!(base64(text), plain.as_bytes());
+        // Ends the browser; a session already lost (chromedriver gone) has nothing to end.
+        let _ = self.runtime.block_on(self.client.clone().close());
     }
 }
