@@ -24,6 +24,7 @@ use std::net::{SocketAddr, TcpListener};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
+use whirl::records::Timestamp;
 
 const TOKEN: &str = "shop-floor-token-0123";
 const JOB: &str = "trapezoidal/job.toml";
@@ -363,6 +364,8 @@ fn the_feed_override_needs_the_token_a_run_and_a_value_within_the_cap() {
     wait_for(Duration::from_secs(60), "the controller at 90 %", || {
         view(&serve)["feed"]["running"] == 90
     });
+    // Seen running at 90 % by now: it began no later (the page shows what the log said).
+    let seen_90 = Timestamp::now();
     // A step past the controller's slowest is held there, saying why (the keys' rule).
     let step = serve.post(&path, &token, r#"{"step": -1000}"#);
     assert_eq!(step.status, 200, "{}", step.body);
@@ -370,6 +373,7 @@ fn the_feed_override_needs_the_token_a_run_and_a_value_within_the_cap() {
     wait_for(Duration::from_secs(60), "the controller at 10 %", || {
         view(&serve)["feed"]["running"] == 10
     });
+    let seen_10 = Timestamp::now();
     assert!(
         step.json()["held"]
             .as_str()
@@ -403,6 +407,25 @@ fn the_feed_override_needs_the_token_a_run_and_a_value_within_the_cap() {
         .map(|n| n["code"].as_i64().unwrap())
         .collect();
     assert_eq!(overrides, [90, 80, 70, 60, 50, 40, 30, 20, 10], "{run}");
+    // Each noted when the controller began to run at it, not when the run stopped: 90 %
+    // before the test saw it (and so before it asked the steps down and the stop), each
+    // step after the one before and before the test saw 10 %, all before the run ended.
+    let at = |n: &serde_json::Value| Timestamp::parse(n["at"].as_str().unwrap()).unwrap();
+    let noted: Vec<Timestamp> = run["notes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|n| n["kind"] == "feed-override")
+        .map(at)
+        .collect();
+    let ended = Timestamp::parse(run["ended_at"].as_str().unwrap()).unwrap();
+    assert!(
+        noted[0] <= seen_90,
+        "90 % noted at {:?}, seen at {seen_90:?}: {run}",
+        noted[0]
+    );
+    assert!(noted.windows(2).all(|w| w[0] <= w[1]), "{run}");
+    assert!(noted[8] <= seen_10 && seen_10 < ended, "{run}");
 }
 
 fn wait_for(limit: Duration, what: &str, mut done: impl FnMut() -> bool) {
@@ -880,15 +903,18 @@ fn found_in_history(
         let rows = rows(p);
         (rows.as_array().map_or(0, Vec::len) >= 2).then_some(rows)
     });
-    // Run, kind, outcome, started, machine, job, transport, resume at, why.
+    // Run, kind, sent to, outcome, started, took, machine, job, transport, resume at, why.
     let (resume, stopped) = (&found[0], &found[1]);
     assert_eq!(resume[1], "serve", "{found}");
-    assert_eq!(resume[2], "completed", "{found}");
-    assert_eq!(stopped[2], "stopped", "{found}");
-    assert_eq!(stopped[7], line.to_string(), "{found}");
-    assert!(resume[5].as_str().unwrap().contains(job), "{found}");
+    // Dry runs: sent to the simulator, not to a machine.
+    assert_eq!(resume[2], "simulator (dry run)", "{found}");
+    assert_eq!(stopped[2], "simulator (dry run)", "{found}");
+    assert_eq!(resume[3], "completed", "{found}");
+    assert_eq!(stopped[3], "stopped", "{found}");
+    assert_eq!(stopped[9], line.to_string(), "{found}");
+    assert!(resume[7].as_str().unwrap().contains(job), "{found}");
     assert_eq!(
-        (&resume[6], &stopped[6]),
+        (&resume[8], &stopped[8]),
         (&transport.into(), &transport.into()),
         "{found}"
     );
@@ -898,7 +924,7 @@ fn found_in_history(
     page.wait("the stopped runs", long, |p| {
         let rows = rows(p);
         let all = rows.as_array()?;
-        (!all.is_empty() && all.iter().all(|r| r[2] == "stopped")).then_some(())
+        (!all.is_empty() && all.iter().all(|r| r[3] == "stopped")).then_some(())
     });
     page.script("document.getElementById('history-outcome').value = '';");
     page.click("#history-search");
@@ -1004,10 +1030,16 @@ struct Sim(Child);
 
 impl Sim {
     fn serving(link: &Path) -> Sim {
+        Sim::serving_with(link, &[])
+    }
+
+    /// As [`Sim::serving`], with more of `whirl-sim`'s options.
+    fn serving_with(link: &Path, args: &[&std::ffi::OsStr]) -> Sim {
         let child = Command::new(env!("CARGO_BIN_EXE_whirl-sim"))
             .arg("--pty")
             .arg(link)
             .args(["--time-scale", "50"])
+            .args(args)
             .stderr(Stdio::null())
             .spawn()
             .unwrap();
@@ -1116,6 +1148,282 @@ fn a_stream_to_the_machine_goes_over_its_profiles_connection_and_is_recorded() {
             .status,
         404
     );
+}
+
+/// A machine profile "lathe 9": the simulator's, its `[connection]` the serial port at
+/// `tty`; written into `dir`.
+fn lathe_on(dir: &Path, tty: &Path) -> PathBuf {
+    let profile = dir.join("lathe.toml");
+    let text = std::fs::read_to_string(repo().join("machine-profiles/sim.toml")).unwrap();
+    std::fs::write(
+        &profile,
+        format!(
+            "{}\n[connection]\ntransport = \"serial\"\nport = \"{}\"\n",
+            text.replace(
+                "name = \"whirl-sim: simulated XZC whirling lathe\"",
+                "name = \"lathe 9\""
+            ),
+            tty.display()
+        ),
+    )
+    .unwrap();
+    profile
+}
+
+/// The SHA-256 of `bytes`, lower-case hex.
+fn sha256(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// The run page's buttons, enabled or not: Hold, Resume, Stop.
+fn buttons(page: &Session) -> [bool; 3] {
+    let enabled = page.script(
+        "return ['btn-hold', 'btn-resume', 'btn-stop'].map(id => !document.getElementById(id).disabled)",
+    );
+    let at = |i: usize| enabled[i].as_bool().unwrap();
+    [at(0), at(1), at(2)]
+}
+
+/// The run page in the state whose banner says `word` (coloured as `class`), with Hold,
+/// Resume and Stop `enabled` as given, checked at 1920×1080 and 1280×800 and saved as
+/// `run-{state}-{width}x{height}.png`: nothing wider than the window (no sideways
+/// scrolling), and at the tablet's size every button a touch target of at least 48 CSS
+/// pixels each way (Material Design's and WCAG 2.5.5's size for a finger).
+fn state_at_both_sizes(page: &Session, state: &str, word: &str, class: &str, enabled: [bool; 3]) {
+    for (width, height) in [(1920, 1080), (1280, 800)] {
+        page.resize(width, height);
+        page.wait(word, Duration::from_secs(120), |p| {
+            (p.text("run-banner-word") == word).then_some(())
+        });
+        let banner = page.script("return document.getElementById('run-banner').className");
+        assert_eq!(banner, format!("banner {class}"), "{state}");
+        assert_eq!(buttons(page), enabled, "{state} at {width}×{height}");
+        let overflow =
+            page.script("return [document.documentElement.scrollWidth, window.innerWidth]");
+        assert!(
+            overflow[0].as_u64() <= overflow[1].as_u64(),
+            "{state} at {width}×{height}: the page is {} px wide in a {} px window",
+            overflow[0],
+            overflow[1]
+        );
+        if width == 1280 {
+            let sizes = page.script(
+                "return [...document.querySelectorAll('.buttons button')] \
+                 .filter(b => b.offsetParent !== null) \
+                 .map(b => { const r = b.getBoundingClientRect(); return [b.id, r.width, r.height]; })",
+            );
+            let sizes = sizes.as_array().unwrap();
+            assert!(sizes.len() >= 3, "{sizes:?}");
+            for size in sizes {
+                assert!(
+                    size[1].as_f64() >= Some(48.0) && size[2].as_f64() >= Some(48.0),
+                    "{state}: {size} is smaller than a 48 px touch target"
+                );
+            }
+        }
+        shoot(page, &format!("run-{state}-{width}x{height}"));
+    }
+}
+
+/// The run page an operator reads at a glance, in the four states they meet: running,
+/// held, in alarm and stopped, each at 1920×1080 and 1280×800 (a desk and a tablet), with a
+/// screenshot of each; beside it, what the page says of itself: how the console is reached
+/// and guarded (no secret shown), who holds the machine's lock since when, what the
+/// program was planned from (the job's and the machine profile's hashes, Δ and the
+/// installation angle), the history telling a dry run from a stream with each one's
+/// duration, and a job's TOML error on lines of its own.
+///
+/// The alarm is the simulator's Δ guard (`ALARM:64`): the console streams the job to a
+/// `whirl-sim` whose guard measures the cut against the same groove held to a Δ of
+/// 0.1 µm, which the plan (made for the job's 10 µm) exceeds as soon as it cuts.
+#[test]
+fn the_run_page_reads_at_a_glance_running_held_in_alarm_and_stopped_at_both_sizes() {
+    let Some((chromium, chromedriver)) = browser() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let jobs = short_jobs(dir.path());
+    let job = "short/job.toml";
+    let job_bytes = std::fs::read(jobs.join(job)).unwrap();
+    // A job with TOML errors: a value with no closing quote, and keys the schema lacks.
+    std::fs::create_dir_all(jobs.join("broken")).unwrap();
+    std::fs::write(
+        jobs.join("broken/job.toml"),
+        "[groove]\nlead = \"14\nstarts = 2\n[spindle]\nrpm = 3\n",
+    )
+    .unwrap();
+    let tight = dir.path().join("tight.toml");
+    let text = String::from_utf8(job_bytes.clone()).unwrap();
+    assert!(text.contains("delta = 0.01\n"));
+    std::fs::write(&tight, text.replace("delta = 0.01\n", "delta = 0.0001\n")).unwrap();
+    let tty = dir.path().join("ttyWHIRL");
+    let _sim = Sim::serving_with(&tty, &["--job".as_ref(), tight.as_os_str()]);
+    let profile = lathe_on(dir.path(), &tty);
+    let profile_sha = sha256(&std::fs::read(&profile).unwrap());
+    let serve = Serve::start_with_jobs(dir, &jobs, &["--machine", profile.to_str().unwrap()]);
+    let driver = Driver::start(&chromedriver);
+    let page = Session::new(driver.1, chromium.to_str().unwrap());
+    let long = Duration::from_secs(120);
+    page.open(&format!("{}#run", serve.url()));
+    page.wait("the run form", long, |p| {
+        (p.script("return document.getElementById('run-job').options.length")
+            .as_u64()
+            >= Some(2))
+        .then_some(())
+    });
+
+    // How the console is reached and guarded: on loopback, the names it answers to, no
+    // token; the page key (a secret of the page) not shown.
+    let safety = page.wait("the safety line", long, |p| {
+        Some(p.text("safety")).filter(|t| t.contains("Loopback"))
+    });
+    let port = serve.addr.port();
+    assert!(
+        safety.starts_with(&format!("Loopback only (127.0.0.1:{port})"))
+            && safety.contains(&format!("localhost:{port}"))
+            && safety.contains("no token"),
+        "{safety}"
+    );
+    assert!(!safety.contains(&serve.key), "{safety}");
+    page.wait("the machine's lock, free", long, |p| {
+        p.text("run-lock").starts_with("Machine free").then_some(())
+    });
+
+    // A TOML error keeps its lines: the position, the source line and the caret under it.
+    page.script("document.getElementById('run-job').value = 'broken/job.toml';");
+    page.click("#run-start");
+    let lines = page.wait("the TOML error", long, |p| {
+        let lines = p.script(
+            "const e = document.getElementById('run-error'); \
+             const line = parseFloat(getComputedStyle(e).lineHeight); \
+             return e.textContent && [e.innerText.split('\\n').length, \
+                                      Math.round(e.getBoundingClientRect().height / line)]",
+        );
+        lines
+            .as_array()
+            .map(|l| (l[0].as_u64().unwrap(), l[1].as_u64().unwrap()))
+    });
+    let error = page.text("run-error");
+    assert!(
+        error.contains("broken/job.toml") && error.contains("line 2"),
+        "{error}"
+    );
+    assert!(lines.0 >= 3 && lines.1 >= 3, "{lines:?} lines: {error}");
+    shoot(&page, "run-toml-error");
+
+    // Running: a dry run of 4 mm of the example at 10× real time.
+    page.script(&format!(
+        "document.getElementById('run-job').value = {job:?}; \
+         document.getElementById('run-transport').value = 'serial'; \
+         document.getElementById('run-scale').value = '10';"
+    ));
+    page.click("#run-start");
+    let done = |p: &Session| first_number(&p.text("run-done"));
+    let first = page.wait("progress", long, |p| done(p).filter(|&n| n > 0));
+    let running_seen = Instant::now();
+    page.wait("progress to advance", long, |p| {
+        done(p).filter(|&n| n > first)
+    });
+    assert_eq!(page.text("run-error"), "");
+    state_at_both_sizes(&page, "running", "RUNNING", "run", [true, false, true]);
+    // Stop asks first, on the page, its buttons as large.
+    page.click("#btn-stop");
+    assert!(page.displayed("#stop-confirm"));
+    let confirm = page.script(
+        "const r = document.getElementById('btn-stop-confirm').getBoundingClientRect(); \
+         return [r.right <= window.innerWidth, r.height]",
+    );
+    assert_eq!(confirm[0], true, "{confirm}");
+    shoot(&page, "run-stop-confirm-1280x800");
+    page.click("#btn-stop-cancel");
+    assert!(!page.displayed("#stop-confirm"));
+    // Who holds the machine, since when: this console's run, started from this page.
+    let lock = page.wait("the machine's lock, held", long, |p| {
+        Some(p.text("run-lock")).filter(|t| t.starts_with("Machine locked"))
+    });
+    assert!(
+        lock.contains("console run of short/job.toml started by 127.0.0.1:")
+            && lock.contains(" since ")
+            && lock.contains(&format!("process {}", serve.child.id())),
+        "{lock}"
+    );
+    // What the program was planned from: the job's and the profile's hashes (short), Δ and
+    // the installation angle of the job.
+    let planned = page.text("run-provenance");
+    for fact in [
+        format!("from job {job} (sha256 {}…)", &sha256(&job_bytes)[..12]),
+        format!(
+            "for machine lathe 9 (profile sha256 {}…)",
+            &profile_sha[..12]
+        ),
+        "planned Δ 0.01 mm".to_owned(),
+        "installation angle 7.800°".to_owned(),
+    ] {
+        assert!(planned.contains(&fact), "{fact}: {planned}");
+    }
+
+    // Held: Resume and Stop, not Hold.
+    page.click("#btn-hold");
+    page.wait("the hold", long, |p| held_shown(p, "serial").then_some(()));
+    state_at_both_sizes(&page, "held", "HELD", "held", [false, true, true]);
+
+    // Stopped: nothing to press but the resume offered. The run had started before the
+    // test saw it progress, and ends after Stop is pressed.
+    page.click("#btn-stop");
+    let stop_pressed = Instant::now();
+    page.click("#btn-stop-confirm");
+    state_at_both_sizes(&page, "stopped", "STOPPED", "held", [false, false, false]);
+    assert!(page.displayed("#resume-offer"));
+    page.wait("the machine's lock, free again", long, |p| {
+        p.text("run-lock").starts_with("Machine free").then_some(())
+    });
+
+    // In alarm: streamed to the machine, whose Δ guard stops it; nothing to press once the
+    // run has ended.
+    page.click("#run-stream");
+    page.wait("the stream to start", long, |p| {
+        p.text("run-title").contains("to the machine").then_some(())
+    });
+    page.wait("the stream to end", Duration::from_secs(240), |p| {
+        p.text("run-title").contains("(ended)").then_some(())
+    });
+    state_at_both_sizes(&page, "alarm", "ALARM", "alarm", [false, false, false]);
+    let todo = page.text("run-banner-todo");
+    assert!(todo.starts_with("ALARM:64"), "{todo}");
+    assert!(todo.contains("clear the alarm at the machine"), "{todo}");
+
+    // The history: the dry run on the simulator, the stream to the machine, and how long
+    // each took; the dry run no shorter than the test watched it go.
+    page.resize(1920, 1080);
+    page.open(&format!("{}#history", serve.url()));
+    let rows = page.wait("both runs in the history", long, |p| {
+        let rows = p.script(
+            "return [...document.querySelectorAll('#history-table tbody tr')] \
+             .map(r => [...r.cells].map(c => c.textContent))",
+        );
+        (rows.as_array().map_or(0, Vec::len) >= 2).then_some(rows)
+    });
+    let (stream, dry) = (&rows[0], &rows[1]);
+    assert_eq!(stream[2], "MACHINE (stream)", "{rows}");
+    assert_eq!(dry[2], "simulator (dry run)", "{rows}");
+    for row in [stream, dry] {
+        assert!(row[5].as_str().unwrap().ends_with(" s"), "{rows}");
+    }
+    let runs = serve.get("/api/history").json();
+    let watched = stop_pressed.duration_since(running_seen).as_secs_f64();
+    let took = runs[1]["duration_s"].as_f64().unwrap();
+    assert_eq!(runs[1]["mode"], "dry-run", "{runs}");
+    assert_eq!(runs[0]["mode"], "stream", "{runs}");
+    // The record's times are whole milliseconds: 2 ms for the two ends.
+    assert!(
+        took >= watched - 0.002,
+        "took {took} s, watched {watched} s"
+    );
+    shoot(&page, "history-modes");
 }
 
 // ---------------------------------------------------------------------------------------

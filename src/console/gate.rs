@@ -30,6 +30,8 @@ pub const PAGE_HEADER: &str = "x-whirl-page";
 /// The console's gate: the hosts it answers to, and its page key.
 #[derive(Clone)]
 pub struct Gate {
+    /// The address the console listens on.
+    listen: SocketAddr,
     /// Every `Host` header value the console answers to, lower case.
     hosts: Vec<String>,
     /// The page key, random for each start of the console.
@@ -39,6 +41,7 @@ pub struct Gate {
 impl std::fmt::Debug for Gate {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Gate")
+            .field("listen", &self.listen)
             .field("hosts", &self.hosts)
             .field("key", &"…")
             .finish()
@@ -92,7 +95,17 @@ impl Gate {
             hosts.extend(bare);
         }
         hosts.dedup();
-        Gate { hosts, key }
+        Gate { listen, hosts, key }
+    }
+
+    /// The address the console listens on.
+    pub fn listen(&self) -> SocketAddr {
+        self.listen
+    }
+
+    /// Every `Host` the console answers to (a host and its port).
+    pub fn hosts(&self) -> &[String] {
+        &self.hosts
     }
 
     /// A gate with a fresh random page key.

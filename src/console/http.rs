@@ -105,6 +105,7 @@ pub fn router(console: Arc<Console>, edge: Arc<Edge>) -> Router {
         .route("/api/plan", post(plan))
         .route("/api/verify", post(verify))
         .route("/api/runs", get(runs).post(start))
+        .route("/api/locks", get(locks))
         .route("/api/runs/{machine}/feed-override", post(feed_override))
         .route("/api/runs/{machine}/{button}", post(press))
         .route("/api/runs/{machine}/groove.svg", get(groove))
@@ -349,11 +350,21 @@ async fn session(
     Extension(edge): Extension<Arc<Edge>>,
     headers: HeaderMap,
 ) -> Json<serde_json::Value> {
+    let listen = edge.gate.listen();
     Json(serde_json::json!({
         "token_required": edge.token.is_some(),
         "authorised": authorised(&edge, &headers).is_ok(),
         "page_key": edge.gate.key(),
+        "listen": listen.to_string(),
+        "loopback": listen.ip().is_loopback(),
+        "hosts": edge.gate.hosts(),
     }))
+}
+
+/// Every machine's lock and who holds it since when: this console's runs and a
+/// `whirl stream` of another terminal alike.
+async fn locks(State(console): State<Arc<Console>>) -> Json<Vec<super::runner::LockView>> {
+    Json(console.locks())
 }
 
 async fn machines(State(console): State<Arc<Console>>) -> Json<Vec<String>> {
@@ -404,8 +415,10 @@ async fn runs(State(console): State<Arc<Console>>) -> Json<Vec<RunView>> {
 
 async fn start(
     State(console): State<Arc<Console>>,
-    Json(request): Json<RunRequest>,
+    Extension(client): Extension<Client>,
+    Json(mut request): Json<RunRequest>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
+    request.client = client.0;
     let id = blocking(move || console.start(&request)).await?;
     Ok(Json(serde_json::json!({ "id": id })))
 }
@@ -423,7 +436,7 @@ async fn press(
             reason: "the console's stop button",
         },
         "resume-at" => {
-            let id = blocking(move || console.resume(&machine)).await?;
+            let id = blocking(move || console.resume(&machine, &client.0)).await?;
             return Ok(Json(serde_json::json!({ "id": id })));
         }
         other => {

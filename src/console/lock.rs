@@ -25,10 +25,73 @@ pub fn lock_dir() -> PathBuf {
         .unwrap_or_else(|| std::env::temp_dir().join("whirl-locks"))
 }
 
-/// This process, as a lock names its holder: its id and command line.
+/// This process, as a lock names its holder: its id and command line, the access token
+/// left out (the lock file is readable by every user of the host, and the console shows
+/// its holder on its page).
 pub fn this_process() -> String {
-    let command: Vec<String> = std::env::args().collect();
+    let command = without_secrets(std::env::args());
     format!("process {} ({})", std::process::id(), command.join(" "))
+}
+
+/// A command line with the value of `--token` replaced by `***`.
+fn without_secrets(args: impl IntoIterator<Item = String>) -> Vec<String> {
+    let mut hide = false;
+    args.into_iter()
+        .map(|arg| {
+            let hidden = if hide {
+                "***".to_owned()
+            } else if arg.starts_with("--token=") {
+                "--token=***".to_owned()
+            } else {
+                arg.clone()
+            };
+            hide = arg == "--token";
+            hidden
+        })
+        .collect()
+}
+
+/// Who holds a lock, as its file names them, and since when.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct Holder {
+    /// The holder as it wrote itself into the lock file.
+    pub holder: String,
+    /// When it took the lock (the file's last change), UTC.
+    pub since: Option<String>,
+}
+
+/// Who holds the lock on `what` in `dir` now, if anyone: looked at with a shared lock
+/// tried and let go at once (a held lock refuses it), so a lock a `whirl stream` of
+/// another terminal holds is seen as well as this console's own. A run starting in that
+/// instant is refused as busy, which errs on the safe side.
+pub fn holder(dir: &Path, what: &str) -> Option<Holder> {
+    let path = dir.join(file_name(what));
+    let mut file = File::open(&path).ok()?;
+    match flock(&file, FlockOperation::NonBlockingLockShared) {
+        Ok(()) => {
+            // Free: let go at once.
+            let _ = flock(&file, FlockOperation::Unlock);
+            None
+        }
+        Err(_) => {
+            let mut holder = String::new();
+            let _ = file.read_to_string(&mut holder);
+            let since = file
+                .metadata()
+                .and_then(|m| m.modified())
+                .ok()
+                .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+                .and_then(|d| i64::try_from(d.as_millis()).ok())
+                .map(|ms| crate::records::Timestamp(ms).to_text());
+            Some(Holder {
+                holder: match holder.trim() {
+                    "" => "another process (not yet named in the lock file)".to_owned(),
+                    named => named.to_owned(),
+                },
+                since,
+            })
+        }
+    }
 }
 
 /// A held lock; dropping it (or the process ending) releases it.
@@ -159,6 +222,33 @@ mod tests {
         assert!(
             error.to_string().contains("cannot lock machine m"),
             "{error}"
+        );
+    }
+
+    #[test]
+    fn the_holder_of_a_lock_is_seen_until_it_is_dropped_and_the_token_never() {
+        let dir = tempfile::tempdir().unwrap();
+        let what = "machine lathe";
+        assert_eq!(holder(dir.path(), what), None);
+        let lock = MachineLock::acquire(dir.path(), what, "process 7 (whirl stream)").unwrap();
+        let held = holder(dir.path(), what).expect("held");
+        assert_eq!(held.holder, "process 7 (whirl stream)");
+        assert!(held.since.unwrap().ends_with('Z'));
+        // Looking did not take it: the holder still holds it, and a second is refused.
+        assert!(MachineLock::acquire(dir.path(), what, "p").is_err());
+        drop(lock);
+        assert_eq!(holder(dir.path(), what), None);
+        let args = [
+            "whirl",
+            "serve",
+            "--token",
+            "s3cret-s3cret-s3cret",
+            "--token=abc",
+            "-x",
+        ];
+        assert_eq!(
+            without_secrets(args.map(str::to_owned)),
+            ["whirl", "serve", "--token", "***", "--token=***", "-x"]
         );
     }
 

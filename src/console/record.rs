@@ -13,7 +13,7 @@ use crate::log::Record;
 use crate::records::from_log::LogFacts;
 use crate::records::{
     Ending, FileSnapshot, Kind, NewRun, Note, NoteKind, Outcome, Place, ProgramId, RecordError,
-    RunId, RunProvenance, Store,
+    RunId, RunProvenance, Store, Timestamp,
 };
 use crate::transport::Posted;
 
@@ -88,16 +88,19 @@ pub fn pressed(kind: NoteKind, line: Option<usize>, client: &str) -> Note {
 }
 
 /// Adds to `ending` what a console knows beside the run's own result: the controller's
-/// alarms in its log (when the result noted none), the resume point it offers, and the
-/// error measured of the cut.
+/// alarms in its log (when the result noted none), the feed overrides it ran at (each at
+/// the wall time `when` gives its log time), the resume point it offers, and the error
+/// measured of the cut.
 pub fn complete(
     ending: &mut Ending,
     log: &[Record],
     resume: Option<&ResumePoint>,
     measured: Option<Measured>,
+    when: impl Fn(f64) -> Option<Timestamp>,
 ) {
-    // What the log says beside where to resume, which the run's view knows.
-    ending.add_log(&LogFacts::of(log.to_vec(), 1));
+    // What the log says beside where to resume, which the run's view knows; each feed
+    // override noted when it happened (`when`: the wall time of a log time).
+    ending.add_log_timed(&LogFacts::of(log.to_vec(), 1), when);
     if ending.outcome != Outcome::Completed {
         if let Some(point) = resume {
             ending.resume_at = Some(point.line);
@@ -170,7 +173,9 @@ mod tests {
             within_delta: true,
         };
         let mut stopped = Ending::new(Outcome::Stopped);
-        complete(&mut stopped, &[alarm], Some(&point), Some(measured));
+        complete(&mut stopped, &[alarm], Some(&point), Some(measured), |_| {
+            None
+        });
         assert_eq!(
             (stopped.resume_at, stopped.possibly_run_to),
             (Some(40), Some(44))
@@ -179,9 +184,39 @@ mod tests {
         // Half a groove is not a part within Δ.
         assert!(!stopped.measured.unwrap().within_delta);
         let mut done = Ending::new(Outcome::Completed);
-        complete(&mut done, &[], Some(&point), Some(measured));
+        complete(&mut done, &[], Some(&point), Some(measured), |_| None);
         assert_eq!(done.resume_at, None);
         assert!(done.measured.unwrap().within_delta);
         assert!(done.notes.is_empty());
+    }
+
+    #[test]
+    fn each_feed_override_is_noted_when_the_controller_ran_at_it_not_at_the_end() {
+        let feed = |t, percent| Record {
+            t,
+            event: Event::FeedOverride {
+                percent,
+                state: crate::log::FeedOverrideState::Running,
+            },
+        };
+        let log = [feed(1.0, 100), feed(2.0, 90), feed(7.5, 120)];
+        let mut ending = Ending::new(Outcome::Stopped);
+        // The wall clock of a run that started at 10:00:00.
+        let start = Timestamp::parse("2026-05-01T10:00:00").unwrap();
+        complete(&mut ending, &log, None, None, |t| {
+            Some(Timestamp(start.0 + (t * 1000.0) as i64))
+        });
+        let noted: Vec<(Option<u32>, Option<&str>)> = ending
+            .notes
+            .iter()
+            .map(|n| (n.code, n.at.as_deref()))
+            .collect();
+        assert_eq!(
+            noted,
+            [
+                (Some(90), Some("2026-05-01T10:00:02.000Z")),
+                (Some(120), Some("2026-05-01T10:00:07.500Z"))
+            ]
+        );
     }
 }

@@ -95,6 +95,38 @@ pub struct RunView {
     pub around: Vec<(usize, String)>,
     /// The ring's speed the program asks (its `S` word), rpm.
     pub ring_rpm: Option<f64>,
+    /// When the run started, UTC (RFC 3339).
+    pub started_at: String,
+    /// Who started it: the client's address and, if it logged in, its session's first
+    /// digits (as the records note who pressed what).
+    pub started_by: String,
+    /// What its program was planned from.
+    pub provenance: Option<ProvenanceView>,
+}
+
+/// What a run's program was planned from, as the page shows it beside the run: the
+/// program, the job and machine profile files by their hashes, and the plan's Δ, angle
+/// and feed, so that an operator sees which planning is cutting.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ProvenanceView {
+    /// The program's name.
+    pub program: String,
+    /// SHA-256 of its lines, each ended by a newline (as the records hash it).
+    pub program_sha256: String,
+    /// The job file, relative to the jobs folder.
+    pub job: String,
+    /// SHA-256 of the job file's bytes as read.
+    pub job_sha256: String,
+    /// The machine profile's name.
+    pub machine: String,
+    /// SHA-256 of the machine profile file, where it is a file the console read.
+    pub machine_sha256: Option<String>,
+    /// The allowable error Δ planned for, mm.
+    pub delta_mm: f64,
+    /// The installation angle planned at, degrees.
+    pub installation_angle_deg: f64,
+    /// The axial feed planned at, mm per workpiece revolution.
+    pub axial_feed_mm: f64,
 }
 
 /// How many program lines the page shows before and after the one executing.
@@ -182,6 +214,9 @@ impl RunView {
             feed: None,
             around: Vec::new(),
             ring_rpm: None,
+            started_at: crate::records::Timestamp::now().to_text(),
+            started_by: String::new(),
+            provenance: None,
         }
     }
 

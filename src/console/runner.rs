@@ -11,7 +11,7 @@ use super::groove;
 use super::lock::{self, LockError, MachineLock};
 use super::paths::{JobDir, PathError};
 use super::record::{self, Records};
-use super::registry::{around, Inputs, Registry, ResumePoint, RunError, RunView};
+use super::registry::{around, Inputs, ProvenanceView, Registry, ResumePoint, RunError, RunView};
 use super::resume::{self, ResumeError, ResumeOptions};
 use crate::config::job::Job;
 use crate::config::machine::MachineProfile;
@@ -21,7 +21,9 @@ use crate::judge::dry_run::{self, DryRunOptions};
 use crate::judge::svg::Plot;
 use crate::log::{Event, ExecLog, FeedOverrideState, Record};
 use crate::plan::overrides::FeedCap;
-use crate::records::{Ending, FileSnapshot, NoteKind, Outcome, RunId, RunProvenance, Store};
+use crate::records::{
+    Ending, FileSnapshot, NoteKind, Outcome, ProgramId, RunId, RunProvenance, Store, Timestamp,
+};
 use crate::transport::control::override_range;
 use crate::transport::{
     self, Commands, Link, Posted, Progress, ProgressFn, RunOptions, TransportKind,
@@ -76,6 +78,10 @@ pub struct RunRequest {
     /// Stream to the machine over its profile's `[connection]` instead of dry-running.
     #[serde(default)]
     pub stream: bool,
+    /// Who asks: the client's address and session, as the HTTP edge tells it (never
+    /// read from the request's body); the run's lock and view name it.
+    #[serde(skip)]
+    pub client: String,
 }
 
 fn real_time() -> f64 {
@@ -154,6 +160,20 @@ struct RunInputs {
     time_scale: f64,
     /// The machine's own connection, for a stream; `None`: a dry run on the simulator.
     link: Option<Link>,
+    /// What the program was planned from, for the page.
+    shown: ProvenanceView,
+}
+
+/// A machine's lock, for the page: which machine or port it is, and who holds it since
+/// when (this console's run, or a `whirl stream` of another terminal), if anyone.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct LockView {
+    /// The machine's name.
+    pub machine: String,
+    /// What the lock is on (the port its profile reaches, else the machine).
+    pub what: String,
+    /// Who holds it and since when; `None`: free.
+    pub held: Option<lock::Holder>,
 }
 
 /// The transports a console dry run takes, by their names.
@@ -187,6 +207,21 @@ impl Console {
             lock_dir: lock::lock_dir(),
             holder: lock::this_process(),
         }
+    }
+
+    /// Every machine's lock and its holder, if held (see [`lock::holder`]).
+    pub fn locks(&self) -> Vec<LockView> {
+        self.machines
+            .iter()
+            .map(|(name, profile)| {
+                let what = super::machine_key(profile);
+                LockView {
+                    machine: name.clone(),
+                    held: lock::holder(&self.lock_dir, &what),
+                    what,
+                }
+            })
+            .collect()
     }
 
     fn machine(&self, name: &str) -> Result<&MachineProfile, StartError> {
@@ -298,6 +333,7 @@ impl Console {
             .machine_files
             .get(&request.machine)
             .map(|file| planned_from(&path, &bytes, machine, file, &plan));
+        let shown = shown_provenance(&request.job, &bytes, machine, self, &posted, &plan);
         // The overrides the transport's controller takes, up to the cusp's cap.
         let feed_cap = override_range(kind).map(|range| FeedCap::of(&plan.report, range));
         let inputs = Arc::new(RunInputs {
@@ -316,8 +352,9 @@ impl Console {
                 request.time_scale
             },
             link,
+            shown,
         });
-        self.launch(&request.machine, inputs, None, Vec::new())
+        self.launch(&request.machine, inputs, None, Vec::new(), &request.client)
     }
 
     /// The groove `machine`'s runs have cut so far, against the target of the job they ran,
@@ -335,8 +372,9 @@ impl Console {
         })
     }
 
-    /// Resumes `machine`'s stopped run where it stopped; gives the new run's id.
-    pub fn resume(self: &Arc<Console>, machine: &str) -> Result<u64, StartError> {
+    /// Resumes `machine`'s stopped run where it stopped, as `client` asks; gives the new
+    /// run's id.
+    pub fn resume(self: &Arc<Console>, machine: &str, client: &str) -> Result<u64, StartError> {
         self.machine(machine)?;
         let nothing = || StartError::NothingToResume(machine.to_owned());
         let (view, cut, inputs) = self.registry.last(machine).ok_or_else(nothing)?;
@@ -347,7 +385,7 @@ impl Console {
         let inputs = inputs
             .and_then(|i| i.downcast::<RunInputs>().ok())
             .ok_or_else(nothing)?;
-        self.launch(machine, inputs, Some(point.line), cut)
+        self.launch(machine, inputs, Some(point.line), cut, client)
     }
 
     /// Locks the machine, registers the run and starts its thread.
@@ -357,9 +395,13 @@ impl Console {
         inputs: Arc<RunInputs>,
         resume_at: Option<usize>,
         cut: Vec<Record>,
+        client: &str,
     ) -> Result<u64, StartError> {
         let profile = self.machine(machine)?;
-        let holder = format!("{}, console run of {}", self.holder, inputs.job_name);
+        let holder = format!(
+            "{}, console run of {} started by {client}",
+            self.holder, inputs.job_name
+        );
         let lock = MachineLock::acquire(&self.lock_dir, &super::machine_key(profile), &holder)?;
         let (control, commands) = transport::control();
         if let Some(cap) = &inputs.feed_cap {
@@ -371,6 +413,8 @@ impl Console {
         };
         let mut view = RunView::new(machine, &inputs.job_name, &transport, inputs.time_scale);
         view.resumed_at = resume_at;
+        view.started_by = client.to_owned();
+        view.provenance = Some(inputs.shown.clone());
         view.total = inputs.posted.lines.len();
         view.ring_rpm = inputs.posted.program.moves.iter().find_map(|m| match m {
             crate::program::Move::SpindleOn { rpm } => Some(*rpm),
@@ -498,6 +542,8 @@ impl Console {
             log: log.clone(),
             read: 0,
             last: Instant::now(),
+            read_at: Timestamp::now(),
+            feed_times: Vec::new(),
         }));
         let progress = progress(Arc::clone(&reader), inputs);
         let mut run_log = log.clone();
@@ -562,7 +608,11 @@ impl Console {
                 (Ending::of_stream(&streamed), None)
             }
         };
-        reader.lock().unwrap_or_else(|p| p.into_inner()).read_log();
+        let feed_times = {
+            let mut reader = reader.lock().unwrap_or_else(|p| p.into_inner());
+            reader.read_log();
+            std::mem::take(&mut reader.feed_times)
+        };
         let (view, cut) = self
             .registry
             .last(machine)
@@ -579,6 +629,7 @@ impl Console {
             &log.records(),
             resume.as_ref(),
             measured.as_ref().and_then(|m| m.as_ref().ok().copied()),
+            |t| feed_times.iter().find(|c| c.0 == t).map(|c| c.1),
         );
         // Closed before the page hears the run ended, so that its history shows it so.
         let unclosed = recorded.and_then(|(store, record)| {
@@ -683,6 +734,33 @@ fn planned_from(
     })
 }
 
+/// What the page shows of what a run's program was planned from: the job `name` whose
+/// bytes are `job`, the machine's profile file as `console` read it, the program and the
+/// plan's Δ, angle and feed (the same facts as the record's provenance header).
+fn shown_provenance(
+    name: &str,
+    job: &[u8],
+    machine: &MachineProfile,
+    console: &Console,
+    posted: &Posted,
+    plan: &crate::plan::Plan,
+) -> ProvenanceView {
+    ProvenanceView {
+        program: posted.name.clone(),
+        program_sha256: ProgramId::of(posted.name.clone(), &posted.lines.join("\n")).sha256,
+        job: name.to_owned(),
+        job_sha256: crate::records::sha256_hex(job),
+        machine: machine.name.clone(),
+        machine_sha256: console
+            .machine_files
+            .get(&machine.name)
+            .map(|f| f.sha256.clone()),
+        delta_mm: plan.report.delta_mm,
+        installation_angle_deg: plan.report.installation_angle_deg,
+        axial_feed_mm: plan.report.axial_feed_mm,
+    }
+}
+
 fn failed(error: impl std::fmt::Display) -> Ending {
     let mut ending = Ending::new(Outcome::Failed);
     ending.reason = Some(error.to_string());
@@ -710,13 +788,24 @@ struct LogReader {
     /// Records read so far.
     read: usize,
     last: Instant,
+    /// When the log was last read, by the wall clock.
+    read_at: Timestamp,
+    /// When each feed override the controller began to run at happened, by the wall clock:
+    /// its log time, the wall time it was read at less how long before the last record
+    /// read it was logged, never before the read before (a log whose clock is a CAN
+    /// session's, scaled, is thus off by at most the time between two reads), and the
+    /// percent. The record notes each at this time, not at the run's end.
+    feed_times: Vec<(f64, Timestamp, u16)>,
 }
 
 impl LogReader {
     fn read_log(&mut self) {
         self.last = Instant::now();
+        let (before, now) = (self.read_at, Timestamp::now());
+        self.read_at = now;
         let new = self.log.records_from(self.read);
         self.read += new.len();
+        let newest = new.last().map_or(0.0, |r| r.t);
         let mut executed = Vec::new();
         let mut words = Vec::new();
         let mut alarms = Vec::new();
@@ -728,7 +817,16 @@ impl LogReader {
                 Event::FeedOverride {
                     percent,
                     state: FeedOverrideState::Running,
-                } => running = Some(*percent),
+                } => {
+                    running = Some(*percent);
+                    // Each change once, from the planned 100 % on, as the record's notes
+                    // are read from the log (grbl reports its override in every status).
+                    if self.feed_times.last().map_or(100, |c| c.2) != *percent {
+                        let ago = ((newest - record.t).max(0.0) * 1000.0) as i64;
+                        let wall = Timestamp((now.0 - ago).max(before.0));
+                        self.feed_times.push((record.t, wall, *percent));
+                    }
+                }
 
                 Event::Executed { .. } => executed.push(record.clone()),
                 Event::Alarm { code, message } => alarms.push(format!("ALARM:{code} {message}")),
@@ -854,6 +952,7 @@ mod tests {
             transport: "serial".into(),
             time_scale: 100.0,
             stream: false,
+            client: "127.0.0.1:1".into(),
         }
     }
 
@@ -876,7 +975,7 @@ mod tests {
         can.transport = "can".into();
         assert!(refused(can).contains("the simulator serves serial"));
         assert!(console
-            .resume(&sim)
+            .resume(&sim, "test")
             .unwrap_err()
             .to_string()
             .contains("no stopped run to resume"));
@@ -925,6 +1024,8 @@ mod tests {
             log: log.clone(),
             read: 0,
             last: Instant::now(),
+            read_at: Timestamp::now(),
+            feed_times: Vec::new(),
         };
         let running = |c: &Console| c.registry.views()[0].feed.as_ref().unwrap().running;
         let mut writer = log.clone();
@@ -945,8 +1046,14 @@ mod tests {
         assert_eq!(running(&console), Some(80));
         // Not taken: what runs stays what the controller last reported.
         say(70, FeedOverrideState::NotTaken);
+        say(80, FeedOverrideState::Running);
         reader.read_log();
         assert_eq!(running(&console), Some(80));
+        // Each change the controller ran at is timed once, when it was read, for the
+        // record's notes; the same value reported again is no change.
+        let percents: Vec<u16> = reader.feed_times.iter().map(|c| c.2).collect();
+        assert_eq!(percents, [90, 80]);
+        assert!(reader.feed_times.iter().all(|c| c.1 <= Timestamp::now()));
     }
 
     #[test]

@@ -3,6 +3,7 @@
 //! and a console close their records from the same facts.
 
 use super::from_log::LogFacts;
+use super::time::Timestamp;
 use super::{Ending, Measured, Note, NoteKind, Outcome};
 use crate::judge::dry_run::DryRunReport;
 use crate::transport::{self, StreamError};
@@ -70,15 +71,32 @@ impl Ending {
 
     /// Adds what the run's log says: the last line known done, the controller's alarms if
     /// none are noted yet (a dry run's report has them with the guard's words), and every
-    /// feed override the controller ran at.
-    pub fn add_log(&mut self, facts: &LogFacts) {
+    /// feed override the controller ran at, each at the time the controller first reported
+    /// it: the run's start (`started`, its log's time 0) plus its log time. Without a
+    /// start, see [`Ending::add_log_timed`].
+    pub fn add_log(&mut self, facts: &LogFacts, started: Option<Timestamp>) {
+        self.add_log_timed(facts, |t| {
+            let start = started?;
+            (t.is_finite() && t >= 0.0)
+                .then(|| Timestamp(start.0.saturating_add((t * 1000.0) as i64)))
+        });
+    }
+
+    /// [`Ending::add_log`] with the wall time of a log time given by `when`: a log whose
+    /// clock is not the wall's (a CAN session's, scaled) is timed by when it was read. A
+    /// note `when` cannot time is noted at the run's end.
+    pub fn add_log_timed(&mut self, facts: &LogFacts, when: impl Fn(f64) -> Option<Timestamp>) {
         self.last_line = facts.last_line;
         self.notes
-            .extend(facts.feed_overrides.iter().map(|&percent| Note {
-                code: Some(u32::from(percent)),
+            .extend(facts.feed_overrides.iter().map(|change| Note {
+                code: Some(u32::from(change.percent)),
+                at: when(change.t).map(Timestamp::to_text),
                 ..Note::new(
                     NoteKind::FeedOverride,
-                    format!("the controller ran at a feed override of {percent} %"),
+                    format!(
+                        "the controller ran at a feed override of {} %",
+                        change.percent
+                    ),
                 )
             }));
         if !self.notes.iter().any(|n| n.kind == NoteKind::Alarm) {
@@ -153,13 +171,38 @@ mod tests {
     }
 
     #[test]
-    fn every_feed_override_the_controller_ran_at_is_noted_with_its_percent() {
+    fn every_feed_override_the_controller_ran_at_is_noted_with_its_percent_and_time() {
+        use super::super::from_log::FeedChange;
         let facts = LogFacts {
-            feed_overrides: vec![120, 90],
+            feed_overrides: vec![
+                FeedChange {
+                    percent: 120,
+                    t: 2.5,
+                },
+                FeedChange {
+                    percent: 90,
+                    t: 61.0,
+                },
+            ],
             ..LogFacts::default()
         };
         let mut ending = Ending::new(Outcome::Completed);
-        ending.add_log(&facts);
+        let started = Timestamp::parse("2026-05-01T10:00:00").unwrap();
+        ending.add_log(&facts, Some(started));
+        // When the controller ran at each: the run's start plus the log's time, not the
+        // run's end.
+        let at: Vec<Option<&str>> = ending.notes.iter().map(|n| n.at.as_deref()).collect();
+        assert_eq!(
+            at,
+            [
+                Some("2026-05-01T10:00:02.500Z"),
+                Some("2026-05-01T10:01:01.000Z")
+            ]
+        );
+        // Without a start, the store notes them when it writes them.
+        let mut untimed = Ending::new(Outcome::Completed);
+        untimed.add_log(&facts, None);
+        assert!(untimed.notes.iter().all(|n| n.at.is_none()));
         let noted: Vec<(NoteKind, Option<u32>)> =
             ending.notes.iter().map(|n| (n.kind, n.code)).collect();
         assert_eq!(
@@ -179,7 +222,7 @@ mod tests {
             ..LogFacts::default()
         };
         let mut stream = Ending::new(Outcome::Stopped);
-        stream.add_log(&facts);
+        stream.add_log(&facts, None);
         assert_eq!(stream.last_line, Some(30));
         assert_eq!(stream.notes.len(), 1);
         assert_eq!(stream.notes[0].code, Some(3));
@@ -192,7 +235,7 @@ mod tests {
                 detail: None,
             }],
         ));
-        dry.add_log(&facts);
+        dry.add_log(&facts, None);
         let codes: Vec<Option<u32>> = dry.notes.iter().map(|n| n.code).collect();
         assert_eq!(codes, [Some(64)]);
     }

@@ -30,11 +30,21 @@ pub struct LogFacts {
     pub last_line: Option<usize>,
     /// The alarms the controller raised, in order: code and message.
     pub alarms: Vec<(u32, String)>,
-    /// The feed overrides the controller reported running, percent, in order: each change
-    /// from the planned feed (100 %) on, once.
-    pub feed_overrides: Vec<u16>,
+    /// The feed overrides the controller reported running, in order: each change from the
+    /// planned feed (100 %) on, once, with when it was first reported.
+    pub feed_overrides: Vec<FeedChange>,
     /// The time of its last event, seconds after it started.
     pub last_t: Option<f64>,
+}
+
+/// A feed override the controller began to run at.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FeedChange {
+    /// Percent of the programmed feed.
+    pub percent: u16,
+    /// When the controller first reported it, seconds after the run started (the log's
+    /// time).
+    pub t: f64,
 }
 
 /// Reads the run whose events begin at byte `offset` of the log at `path` and which
@@ -98,8 +108,11 @@ fn facts(records: Vec<Record>, from_line: usize) -> LogFacts {
             Event::FeedOverride {
                 percent,
                 state: FeedOverrideState::Running,
-            } if *facts.feed_overrides.last().unwrap_or(&100) != *percent => {
-                facts.feed_overrides.push(*percent)
+            } if facts.feed_overrides.last().map_or(100, |c| c.percent) != *percent => {
+                facts.feed_overrides.push(FeedChange {
+                    percent: *percent,
+                    t: record.t,
+                })
             }
             _ => {}
         }
@@ -277,7 +290,8 @@ mod tests {
         ];
         let (path, offset) = log_with(dir.path(), vec![], run);
         let facts = read_run(&path, offset, 1).unwrap();
-        assert_eq!(facts.feed_overrides, [150, 90]);
+        let percents: Vec<u16> = facts.feed_overrides.iter().map(|c| c.percent).collect();
+        assert_eq!(percents, [150, 90]);
     }
 
     #[test]

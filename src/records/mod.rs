@@ -357,7 +357,8 @@ impl Ending {
 pub struct Note {
     /// What.
     pub kind: NoteKind,
-    /// When (set by the store as it writes the note).
+    /// When it happened; `None`: when the store writes the note (a hold pressed, a run's
+    /// end), which is when it happened.
     pub at: Option<String>,
     /// The program line it concerns (1-based): where a stop resumes, where a hold held.
     pub line: Option<usize>,
@@ -397,6 +398,48 @@ pub struct Filter {
     pub limit: Option<u32>,
 }
 
+/// Whether a run sent its program to a machine: the history tells a dry run on the
+/// simulator from a stream to a real controller at a glance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RunMode {
+    /// `whirl plan`: a program written, nothing sent.
+    Plan,
+    /// On a simulated controller: `whirl dry-run`, or a console run with no port.
+    DryRun,
+    /// To a machine: `whirl stream`, or a console run that names its port.
+    Stream,
+}
+
+impl RunMode {
+    /// The mode of a run of `kind`, which went to `port` if it names one. A console run
+    /// records no port for a dry run (the simulator is its own), one for a stream.
+    pub fn of(kind: Kind, port: Option<&str>) -> RunMode {
+        match (kind, port) {
+            (Kind::Plan, _) => RunMode::Plan,
+            (Kind::DryRun, _) | (Kind::Serve, None) => RunMode::DryRun,
+            (Kind::Stream, _) | (Kind::Serve, Some(_)) => RunMode::Stream,
+        }
+    }
+}
+
+words!(RunMode {
+    Plan = "plan",
+    DryRun = "dry-run",
+    Stream = "stream",
+});
+
+/// A run's duration in seconds: from `started` to `ended`, or to `now` for a run without
+/// an end (still running); `None` if a time does not read.
+pub fn duration_s(started: &str, ended: Option<&str>, now: Timestamp) -> Option<f64> {
+    let start = Timestamp::parse(started).ok()?;
+    let end = match ended {
+        Some(text) => Timestamp::parse(text).ok()?,
+        None => now,
+    };
+    Some((end.0 - start.0).max(0) as f64 / 1000.0)
+}
+
 /// A run as a list shows it.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RunSummary {
@@ -418,6 +461,10 @@ pub struct RunSummary {
     pub machine: Option<String>,
     /// How the program went.
     pub transport: Option<String>,
+    /// A plan, a dry run on the simulator or a stream to a machine.
+    pub mode: RunMode,
+    /// Seconds from its start to its end; for a run still running, to when it was read.
+    pub duration_s: Option<f64>,
     /// Where it resumes (1-based line), if it did not complete.
     pub resume_at: Option<usize>,
     /// Why, if it did not complete.
@@ -494,6 +541,31 @@ mod tests {
             assert_eq!(NoteKind::from_word(kind.as_str()), Some(kind));
         }
         assert_eq!(Outcome::from_word("done"), None);
+    }
+
+    #[test]
+    fn a_console_run_is_a_dry_run_without_a_port_and_a_stream_with_one() {
+        assert_eq!(RunMode::of(Kind::Serve, None), RunMode::DryRun);
+        assert_eq!(
+            RunMode::of(Kind::Serve, Some("/dev/ttyUSB0")),
+            RunMode::Stream
+        );
+        assert_eq!(RunMode::of(Kind::DryRun, None), RunMode::DryRun);
+        assert_eq!(RunMode::of(Kind::Stream, Some("x")), RunMode::Stream);
+        assert_eq!(RunMode::of(Kind::Plan, None), RunMode::Plan);
+        assert_eq!(serde_json::to_value(RunMode::DryRun).unwrap(), "dry-run");
+    }
+
+    #[test]
+    fn a_duration_runs_from_start_to_end_or_to_now_while_running() {
+        let start = "2026-05-01T10:00:00.000Z";
+        let now = Timestamp::parse("2026-05-01T10:01:00").unwrap();
+        assert_eq!(
+            duration_s(start, Some("2026-05-01T10:00:12.340Z"), now),
+            Some(12.34)
+        );
+        assert_eq!(duration_s(start, None, now), Some(60.0));
+        assert_eq!(duration_s("yesterday", None, now), None);
     }
 
     #[test]

@@ -21,7 +21,7 @@ use super::process::{Liveness, Process};
 use super::time::Timestamp;
 use super::{
     Ending, FileSnapshot, Filter, Kind, LogPlace, Measured, NewRun, Note, NoteKind, Outcome,
-    ProgramId, Run, RunId, RunProvenance, RunSummary,
+    ProgramId, Run, RunId, RunMode, RunProvenance, RunSummary,
 };
 use crate::log::Ended;
 
@@ -655,7 +655,7 @@ impl Store {
         let what = "list the runs";
         let rows = sqlx::query(
             "SELECT id, kind, outcome, started_at, ended_at, job_path, program_name, \
-             machine_name, transport, resume_at, reason FROM runs \
+             machine_name, transport, port, resume_at, reason FROM runs \
              WHERE ($1 IS NULL OR LOWER(job_path) LIKE $1 ESCAPE '\\' \
                     OR LOWER(program_name) LIKE $1 ESCAPE '\\') \
              AND ($2 IS NULL OR LOWER(machine_name) LIKE $2 ESCAPE '\\' \
@@ -786,7 +786,7 @@ fn orphan_ending(
             });
             ending.resume_at = facts.resume_at;
             ending.possibly_run_to = facts.possibly_run_to;
-            ending.add_log(&facts);
+            ending.add_log(&facts, Timestamp::parse(started).ok());
             (ending, facts.last_t)
         }
     };
@@ -807,16 +807,22 @@ fn summary(row: &AnyRow) -> Result<RunSummary, sqlx::Error> {
         index: column.to_owned(),
         source: format!("\"{value}\" is not a word this whirl knows").into(),
     };
+    let kind = Kind::from_word(&kind).ok_or_else(|| unknown("kind", &kind))?;
+    let port: Option<String> = row.try_get("port")?;
+    let started_at: String = row.try_get("started_at")?;
+    let ended_at: Option<String> = row.try_get("ended_at")?;
     Ok(RunSummary {
         id: row.try_get("id")?,
-        kind: Kind::from_word(&kind).ok_or_else(|| unknown("kind", &kind))?,
+        kind,
         outcome: Outcome::from_word(&outcome).ok_or_else(|| unknown("outcome", &outcome))?,
-        started_at: row.try_get("started_at")?,
-        ended_at: row.try_get("ended_at")?,
+        duration_s: super::duration_s(&started_at, ended_at.as_deref(), Timestamp::now()),
+        started_at,
+        ended_at,
         job: row.try_get("job_path")?,
         program: row.try_get("program_name")?,
         machine: row.try_get("machine_name")?,
         transport: row.try_get("transport")?,
+        mode: RunMode::of(kind, port.as_deref()),
         resume_at: usize_of(row.try_get("resume_at")?),
         reason: row.try_get("reason")?,
     })

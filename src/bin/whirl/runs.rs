@@ -26,7 +26,7 @@ use whirl::plan::Plan;
 use whirl::records::from_log::read_run;
 use whirl::records::{
     Ending, FileSnapshot, Filter, Kind, LogPlace, NewRun, Outcome, Place, Process, ProgramId, Run,
-    RunId, RunProvenance, RunSummary, Store, Timestamp,
+    RunId, RunMode, RunProvenance, RunSummary, Store, Timestamp,
 };
 use whirl::transport::{self, Link, Posted, StreamError};
 
@@ -158,16 +158,12 @@ pub(crate) fn runs(command: RunsCommand, recorder: &Recorder) -> Result<ExitCode
     Ok(ExitCode::SUCCESS)
 }
 
-/// How long a run took, from its record's times.
+/// How long a run took, from its record's times; a run still running, how long so far.
 fn duration(run: &RunSummary) -> String {
-    let Some(ended) = run.ended_at.as_deref() else {
-        return "-".into();
-    };
-    let (Ok(start), Ok(end)) = (Timestamp::parse(&run.started_at), Timestamp::parse(ended)) else {
+    let Some(s) = run.duration_s else {
         return "?".into();
     };
-    let s = (end.0 - start.0).max(0) as f64 / 1000.0;
-    match s {
+    let took = match s {
         s if s < 60.0 => format!("{s:.1} s"),
         s if s < 3600.0 => format!("{:.0} min {:.0} s", (s / 60.0).floor(), s % 60.0),
         s => format!(
@@ -175,14 +171,34 @@ fn duration(run: &RunSummary) -> String {
             (s / 3600.0).floor(),
             (s % 3600.0) / 60.0
         ),
+    };
+    if run.ended_at.is_none() {
+        format!("{took} so far")
+    } else {
+        took
+    }
+}
+
+/// Whether a run went to a machine, in a column's words: a plan, a dry run on the
+/// simulator, or a stream (with its transport).
+fn how(run: &RunSummary) -> String {
+    let over = run
+        .transport
+        .as_deref()
+        .map_or(String::new(), |t| format!(" ({t})"));
+    match run.mode {
+        RunMode::Plan => "plan".into(),
+        RunMode::DryRun => format!("dry run{over}"),
+        RunMode::Stream => format!("STREAM{over}"),
     }
 }
 
 /// The runs as a table, one a line, each column as wide as its widest entry.
 fn table(runs: &[RunSummary]) -> Result<()> {
-    let mut rows: Vec<[String; 8]> = vec![[
+    let mut rows: Vec<[String; 9]> = vec![[
         "ID",
         "KIND",
+        "HOW",
         "OUTCOME",
         "STARTED (UTC)",
         "TOOK",
@@ -195,6 +211,7 @@ fn table(runs: &[RunSummary]) -> Result<()> {
         rows.push([
             run.id.to_string(),
             run.kind.to_string(),
+            how(run),
             run.outcome.to_string(),
             run.started_at.clone(),
             duration(run),
@@ -206,7 +223,7 @@ fn table(runs: &[RunSummary]) -> Result<()> {
                 .unwrap_or_else(|| "-".into()),
         ]);
     }
-    let widths: Vec<usize> = (0..8)
+    let widths: Vec<usize> = (0..9)
         .map(|c| rows.iter().map(|r| r[c].chars().count()).max().unwrap_or(0))
         .collect();
     for row in &rows {
@@ -215,8 +232,8 @@ fn table(runs: &[RunSummary]) -> Result<()> {
             let pad = widths[c] - cell.chars().count();
             // Numbers to the right, words to the left; the last column unpadded.
             match c {
-                0 | 4 | 5 => line.push_str(&format!("{}{cell}  ", " ".repeat(pad))),
-                7 => line.push_str(cell),
+                0 | 5 | 6 => line.push_str(&format!("{}{cell}  ", " ".repeat(pad))),
+                8 => line.push_str(cell),
                 _ => line.push_str(&format!("{cell}{}  ", " ".repeat(pad))),
             }
         }
@@ -383,6 +400,8 @@ pub(crate) struct Recorder {
     /// How the run ended, as the command noted it.
     noted: Option<Ending>,
     open: Option<(Open, RunId, NewRun)>,
+    /// When its record opened (about when its log's clock started).
+    started: Option<Timestamp>,
 }
 
 impl Recorder {
@@ -455,6 +474,7 @@ impl Recorder {
             plan: None,
             provenance: None,
             noted: None,
+            started: None,
             open: None,
         }
     }
@@ -512,6 +532,7 @@ impl Recorder {
             path: std::path::absolute(path).unwrap_or_else(|_| path.to_owned()),
             offset: std::fs::metadata(path).map_or(0, |m| m.len()),
         });
+        self.started = Some(Timestamp::now());
         let opened = open(self.db.as_deref(), false).and_then(|open| {
             let id = open.runtime.block_on(open.store.begin(&run))?;
             Ok((open, id))
@@ -612,7 +633,10 @@ impl Recorder {
         }
         if let Some(log) = &run.log {
             if let Ok(facts) = read_run(&log.path, log.offset, run.resume_from.unwrap_or(1)) {
-                ending.add_log(&facts);
+                // The log's clock starts with the transport, a moment (the link's opening)
+                // after the record opened: its notes are timed by the record's start, at
+                // worst that moment early, never at the run's end.
+                ending.add_log(&facts, self.started);
             }
         }
         ending
@@ -633,6 +657,7 @@ mod tests {
 
     #[test]
     fn durations_read_as_a_person_says_them() {
+        let now = Timestamp::parse("2026-05-01T10:00:40").unwrap();
         let run = |start: &str, end: Option<&str>| RunSummary {
             id: 1,
             kind: Kind::Stream,
@@ -642,12 +667,17 @@ mod tests {
             job: None,
             program: None,
             machine: None,
-            transport: None,
+            transport: Some("serial".into()),
+            mode: RunMode::Stream,
+            duration_s: whirl::records::duration_s(start, end, now),
             resume_at: None,
             reason: None,
         };
         let t0 = "2026-05-01T10:00:00.000Z";
-        assert_eq!(duration(&run(t0, None)), "-");
+        // Still running: how long so far.
+        assert_eq!(duration(&run(t0, None)), "40.0 s so far");
+        assert_eq!(duration(&run("yesterday", None)), "?");
+        assert_eq!(how(&run(t0, None)), "STREAM (serial)");
         assert_eq!(
             duration(&run(t0, Some("2026-05-01T10:00:12.340Z"))),
             "12.3 s"

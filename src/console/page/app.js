@@ -64,6 +64,61 @@ function span(s) {
 
 function mm(x) { return x.toFixed(4); }
 
+// A SHA-256 as the page shows it: its first 12 hex digits, enough to tell files apart.
+function short(sha) { return sha.slice(0, 12) + "…"; }
+
+// A record's UTC time as "2026-05-01 14:03:27 UTC".
+function utc(text) { return text ? text.replace("T", " ").replace(/\.\d+Z$/, "").replace("Z", "") + " UTC" : "–"; }
+
+// What the run's program was planned from: the program, the job and machine profile by
+// their hashes, the planned Δ, installation angle and feed.
+function provenanceText(p) {
+  if (!p) return "–";
+  return p.program + " (sha256 " + short(p.program_sha256) + ") from job " + p.job +
+    " (sha256 " + short(p.job_sha256) + ") for machine " + p.machine +
+    (p.machine_sha256 ? " (profile sha256 " + short(p.machine_sha256) + ")" : " (its profile not read from a file)") +
+    "; planned Δ " + p.delta_mm + " mm, installation angle " +
+    p.installation_angle_deg.toFixed(3) + "°, axial feed " + p.axial_feed_mm + " mm/rev";
+}
+
+// How the console is reached and guarded, in one line (no secret in it): loopback or not,
+// the host names it answers to, whether a token guards its actions.
+function safetyText(s) {
+  const reach = s.loopback ? "Loopback only (" + s.listen + ")" :
+    "Reachable from the network at " + s.listen;
+  const hosts = "answers to " + s.hosts.join(", ");
+  const guard = s.token_required ?
+    "a token guards every action" + (s.authorised ? " (this page is logged in)" : " (log in to act)") :
+    "no token: any program of this computer's users can act";
+  return reach + "; " + hosts + "; " + guard + "; actions only from this page.";
+}
+
+// Who holds the chosen machine's lock (this console's run or a whirl stream of another
+// terminal) and since when; fetched as runs change and every few seconds, for a lock
+// taken outside this console tells no event.
+let locks = [];
+let locksAt = 0;
+
+async function fetchLocks() {
+  locksAt = Date.now();
+  try {
+    locks = await api("/api/locks");
+  } catch {
+    locks = [];
+  }
+  showLock();
+}
+
+function showLock() {
+  const l = locks.find((x) => x.machine === $("run-machine").value);
+  const line = $("run-lock");
+  if (!l) { line.textContent = ""; return; }
+  line.className = "lock" + (l.held ? " held" : "");
+  line.textContent = l.held ?
+    "Machine locked (" + l.what + ") by " + l.held.holder + (l.held.since ? " since " + utc(l.held.since) : "") :
+    "Machine free (" + l.what + "): no run holds it.";
+}
+
 async function jobsPage(machines, jobs) {
   fill($("jobs-machine"), machines);
   const body = $("jobs-table").querySelector("tbody");
@@ -131,6 +186,11 @@ function machineState(v) {
   if (!v) return ["NO RUN", "idle", "Choose a job, then dry-run it or stream it."];
   if (v.phase !== "running") {
     if (v.completed) return ["COMPLETED", "done", v.measured ? measuredText(v) : "The program ran to its end."];
+    if (v.alarms.length) {
+      return ["ALARM", "alarm", v.alarms[v.alarms.length - 1] + " — the run has ended" +
+        (v.resume ? " at line " + v.resume.line + ": clear the alarm at the machine, then resume there below." :
+          ": clear the alarm at the machine before another run.")];
+    }
     if ((v.outcome || "").startsWith("stopped")) {
       return ["STOPPED", "held", v.resume ? "The run ended at line " + v.resume.line +
         ": resume there below, or start another run." : "The run ended where it stood."];
@@ -193,6 +253,7 @@ function render() {
   if (!running) $("stop-confirm").hidden = true;
   $("run-start").disabled = running;
   $("run-stream").disabled = running;
+  showLock();
   if (!v) return;
   const name = v.record ? "record " + v.record : "run " + v.id + " (unrecorded)";
   $("run-title").textContent = name + ": " + v.job + " on " + v.machine + " over " +
@@ -208,6 +269,8 @@ function render() {
     return item;
   }));
   $("run-ring").textContent = v.ring_rpm ? v.ring_rpm + " rpm (the program's S)" : "–";
+  $("run-provenance").textContent = provenanceText(v.provenance);
+  $("run-started").textContent = utc(v.started_at) + (v.started_by ? " by " + v.started_by : "");
   $("run-progress").value = v.total ? v.done / v.total : 0;
   $("run-done").textContent = v.done + " of " + v.total + " " + v.unit;
   $("run-elapsed").textContent = span(v.elapsed_s);
@@ -332,19 +395,27 @@ async function history() {
     for (const r of runs) {
       const row = body.insertRow();
       row.dataset.run = r.id;
-      const cells = [r.id, r.kind, r.outcome, r.started_at.replace("T", " ").replace("Z", ""),
-        r.machine || "–", r.job || r.program || "–", r.transport || "–",
+      const how = { "plan": "nothing (a plan)", "dry-run": "simulator (dry run)", "stream": "MACHINE (stream)" }[r.mode];
+      const cells = [r.id, r.kind, how, r.outcome, r.started_at.replace("T", " ").replace("Z", ""),
+        took(r), r.machine || "–", r.job || r.program || "–", r.transport || "–",
         r.resume_at === null ? "–" : r.resume_at, r.reason || ""];
       cells.forEach((c, i) => {
         const cell = row.insertCell();
         cell.textContent = c;
-        if (i === 2) cell.className = "outcome-" + r.outcome;
+        if (i === 2) cell.className = "mode-" + r.mode;
+        if (i === 3) cell.className = "outcome-" + r.outcome;
       });
       row.onclick = () => historyRun(r.id);
     }
   } catch (e) {
     $("history-error").textContent = e.message;
   }
+}
+
+// How long a run took (a running one: so far, as the server read it).
+function took(r) {
+  if (r.duration_s === null || r.duration_s === undefined) return "–";
+  return span(r.duration_s) + (r.ended_at ? "" : " so far");
 }
 
 async function historyRun(id) {
@@ -360,6 +431,8 @@ async function historyRun(id) {
       ["Machine", r.machine && r.machine + (r.machine_file ? " (" + r.machine_file.path + ", sha256 " + r.machine_file.sha256.slice(0, 12) + "…)" : "")],
       ["Job", r.job_file && r.job_file.path + " (sha256 " + r.job_file.sha256.slice(0, 12) + "…)"],
       ["Program", r.program_id && r.program_id.name + ": " + r.program_id.lines + " lines (sha256 " + r.program_id.sha256.slice(0, 12) + "…)"],
+      ["Sent to", { "plan": "nothing (a plan)", "dry-run": "the simulator (a dry run)", "stream": "the machine (a stream)" }[r.mode]],
+      ["Took", took(r)],
       ["Transport", r.transport && r.transport + (r.port ? " to " + r.port : " (dry run on the simulator)")],
       ["Measured", r.measured && (r.measured.within_delta ? "within Δ" : "not within Δ") + ": overcut " + mm(r.measured.max_overcut_mm) +
         " mm, undercut " + mm(r.measured.max_undercut_mm) + " mm (Δ " + r.measured.delta_mm + " mm)"],
@@ -404,6 +477,8 @@ async function main() {
   const session = await api("/api/session");
   pageKey = session.page_key;
   $("login-link").hidden = !(session.token_required && !session.authorised);
+  $("safety").textContent = safetyText(session);
+  $("safety").classList.toggle("open", !session.loopback || !session.token_required);
   const [machines, jobs] = await Promise.all([api("/api/machines"), api("/api/jobs")]);
   await jobsPage(machines, jobs);
   fill($("run-machine"), machines);
@@ -411,6 +486,8 @@ async function main() {
   // No job is chosen for the operator: the first in the list is no better a guess.
   $("run-job").prepend(new Option("— choose a job —", "", true, true));
   $("run-machine").onchange = render;
+  fetchLocks();
+  setInterval(fetchLocks, 5000);
   $("run-form").onsubmit = async (event) => {
     event.preventDefault();
     $("run-error").textContent = "";
@@ -475,6 +552,7 @@ async function main() {
     document.body.classList.remove("console-gone");
     render();
     historyOnEnd();
+    if (Date.now() - locksAt > 1000) fetchLocks();
   });
   // The console gone is said at once, in red: its buttons no longer reach the machine.
   const gone = (words) => {
