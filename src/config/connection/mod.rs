@@ -55,8 +55,8 @@ mod modbus;
 mod serial;
 
 pub use can::{
-    DriveMode, DriveSettings, SlcanSettings, SocketCanSettings, CAN_BITRATES, MAX_CYCLE_US,
-    MIN_CYCLE_US,
+    DriveMode, DriveSettings, EdsFiles, SlcanSettings, SocketCanSettings, CAN_BITRATES,
+    MAX_CYCLE_US, MIN_CYCLE_US,
 };
 pub use linuxcnc::LinuxcncSettings;
 pub use modbus::{ModbusRtuSettings, ModbusTcpSettings, MODBUS_RTU_BAUDS};
@@ -209,6 +209,15 @@ impl Connection {
         match self {
             Connection::CanSlcan(slcan) => Some(&slcan.drives),
             Connection::Can(can) => Some(&can.drives),
+            _ => None,
+        }
+    }
+
+    /// The drives' settings of a CAN connection, to change.
+    pub fn drives_mut(&mut self) -> Option<&mut DriveSettings> {
+        match self {
+            Connection::CanSlcan(slcan) => Some(&mut slcan.drives),
+            Connection::Can(can) => Some(&mut can.drives),
             _ => None,
         }
     }
