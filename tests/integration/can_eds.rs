@@ -32,10 +32,14 @@ fn profile_with_eds(dir: &Path, eds: &str) -> PathBuf {
     util::write(dir, "drives.toml", &text)
 }
 
-/// `whirl stream` of a short hand-written program (X out 1 mm and back) to the drives at
+/// `whirl stream` of a short hand-written program (a rapid to the origin, X out 1 mm and back) to the drives at
 /// `port` on `profile`, logging to `dir/exec.jsonl`; its output once it ends.
 fn stream(dir: &Path, profile: &Path, port: &Path) -> Output {
-    let program = util::write(dir, "job.nc", "G21 G90 G94\nG1 X1 F600\nG1 X0\nM2\n");
+    let program = util::write(
+        dir,
+        "job.nc",
+        "G21 G90 G94\nG0 X0 Z0 C0\nG1 X1 F600\nG1 X0\nM2\n",
+    );
     Command::new(env!("CARGO_BIN_EXE_whirl"))
         .env("WHIRL_DB", dir.join("runs.sqlite"))
         .arg("stream")
