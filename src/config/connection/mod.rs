@@ -18,7 +18,8 @@
 //! | `linuxcnc` | a LinuxCNC machine through `linuxcncrsh`, G-code it opens and runs | [`LinuxcncSettings`] |
 //!
 //! The CAN kinds share their drives' settings, a nested `[connection.drives]` table
-//! ([`DriveSettings`]). Every table denies unknown keys (a key of another transport
+//! ([`DriveSettings`]), whose `eds` names the drives' data sheets ([`EdsFiles`]), read
+//! with the profile ([`crate::config::eds`]). Every table denies unknown keys (a key of another transport
 //! included), most keys have defaults, and [`Connection::validate`] checks the values,
 //! naming the key and what it must be. A profile's loading runs it, and then checks that
 //! the connection fits the machine (a serial line needs grblHAL, the drives' counts must
