@@ -264,13 +264,15 @@ pub enum ProfileError {
 }
 
 impl MachineProfile {
-    /// Loads and validates a profile file.
+    /// Loads and validates a profile file, and reads the drives' data sheets it names
+    /// (`connection.drives.eds`, relative to the profile's folder).
     pub fn load(path: &Path) -> Result<MachineProfile, ProfileError> {
         let text = std::fs::read_to_string(path).map_err(|error| ProfileError::Read {
             path: path.to_owned(),
             error,
         })?;
-        MachineProfile::from_toml(&text, &path.display().to_string())
+        let folder = path.parent().unwrap_or(Path::new(""));
+        MachineProfile::from_toml_in(&text, &path.display().to_string(), folder)
     }
 
     /// The default profile, `machine-profiles/sim.toml`, built into the binary so the
@@ -291,12 +293,24 @@ impl MachineProfile {
         )
     }
 
-    /// Parses and validates a profile; `origin` names the text's source in errors.
+    /// Parses and validates a profile; `origin` names the text's source in errors. The
+    /// drives' data sheets it names (`connection.drives.eds`) are read relative to the
+    /// working directory, the text having no folder of its own.
     pub fn from_toml(text: &str, origin: &str) -> Result<MachineProfile, ProfileError> {
-        let profile: MachineProfile = toml::from_str(text).map_err(|error| ProfileError::Toml {
-            origin: origin.to_owned(),
-            error,
-        })?;
+        MachineProfile::from_toml_in(text, origin, Path::new(""))
+    }
+
+    /// [`MachineProfile::from_toml`], the data sheets read relative to `folder`.
+    fn from_toml_in(
+        text: &str,
+        origin: &str,
+        folder: &Path,
+    ) -> Result<MachineProfile, ProfileError> {
+        let mut profile: MachineProfile =
+            toml::from_str(text).map_err(|error| ProfileError::Toml {
+                origin: origin.to_owned(),
+                error,
+            })?;
         profile
             .validate()
             .map_err(|(key, problem)| ProfileError::Invalid {
@@ -304,6 +318,15 @@ impl MachineProfile {
                 key,
                 problem,
             })?;
+        if let Some(drives) = profile.connection.as_mut().and_then(Connection::drives_mut) {
+            drives
+                .read_data_sheets(folder)
+                .map_err(|error| ProfileError::Invalid {
+                    origin: origin.to_owned(),
+                    key: "connection.drives.eds".into(),
+                    problem: error.to_string(),
+                })?;
+        }
         Ok(profile)
     }
 

@@ -5,10 +5,13 @@
 //! - [`machine`]: a machine profile: the controller's dialect and number type, travel,
 //!   rates and the spindle.
 //! - [`connection`]: a profile's `[connection]`: how the bridge reaches the machine.
+//! - [`eds`]: a CANopen drive's electronic data sheet (CiA 306), which a CAN connection's
+//!   drives are checked against.
 //! - [`provenance`]: what a program was planned from (the files' hashes, Δ, the angle and
 //!   the feed), as its header says it.
 
 pub mod connection;
+pub mod eds;
 pub mod job;
 pub mod machine;
 pub mod provenance;

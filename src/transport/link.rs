@@ -14,8 +14,9 @@ use thiserror::Error;
 
 use super::can::CanLink;
 use super::modbus::{ModbusLink, ModbusOptions};
-use crate::config::connection::{Connection, DriveSettings, LinuxcncSettings};
+use crate::config::connection::{Connection, DriveSettings, LinuxcncSettings, SettingError};
 use crate::config::machine::MachineProfile;
+use crate::protocol::canopen::session::SessionConfig;
 use crate::protocol::canopen::slcan::Bitrate;
 
 /// The transports, as a profile's `transport` key and the command line name them.
@@ -152,6 +153,15 @@ pub enum LinkError {
     /// A CAN bit rate an slcan adapter cannot select.
     #[error("{0} bit/s is not one of slcan's S0-S8 rates")]
     Bitrate(u32),
+    /// CAN drives the session refuses: their data sheets lack an object it uses as it
+    /// uses it.
+    #[error("machine profile \"{machine}\": {error}")]
+    Drives {
+        /// The profile's name.
+        machine: String,
+        /// The key and what is wrong.
+        error: SettingError,
+    },
 }
 
 impl Link {
@@ -272,6 +282,13 @@ pub fn can_bus(machine: &MachineProfile) -> Result<(DriveSettings, Bitrate), Lin
         _ => Bitrate::M1.bits_per_second(),
     };
     let bitrate = Bitrate::from_bits_per_second(bits).ok_or(LinkError::Bitrate(bits))?;
+    // Where a CAN run, a dry run or a resume takes its drives: the session they make is
+    // refused here, before anything is planned, recorded or opened, for drives whose data
+    // sheets (`connection.drives.eds`) lack an object it uses.
+    SessionConfig::for_drives(&drives).map_err(|error| LinkError::Drives {
+        machine: machine.name.clone(),
+        error,
+    })?;
     Ok((drives, bitrate))
 }
 

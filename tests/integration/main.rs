@@ -1,6 +1,7 @@
 //! Integration tests: one binary, shared helpers in `util`.
 
 mod angles;
+mod can_eds;
 mod can_session;
 mod can_wire;
 mod cli;

@@ -287,10 +287,13 @@ fn whirls_master_runs_a_job_on_drives_python_canopen_serves() {
     assert!(port.starts_with("/dev/"), "no terminal: {port:?}");
     // The example drives' profile, its heartbeat watched for a second rather than 150 ms:
     // the drives are Python threads in another process on a host whose two cores other
-    // builds keep busy, and this test is about configuration and set-points.
+    // builds keep busy, and this test is about configuration and set-points. Its drives'
+    // data sheet is the EDS python-canopen serves them from: whirl checks the objects it
+    // uses against it (an independent reader's file) before it sends anything.
     let text = std::fs::read_to_string(util::root().join("machine-profiles/canopen-drives.toml"))
         .unwrap()
-        .replace("heartbeat_timeout_ms = 150", "heartbeat_timeout_ms = 1000");
+        .replace("heartbeat_timeout_ms = 150", "heartbeat_timeout_ms = 1000")
+        + &format!("eds = {:?}\n", eds.display().to_string());
     let profile = util::write(dir.path(), "drives.toml", &text);
     // X 1 → 2 mm, Z 0 → −1 mm, C 0 → 90° in one feed, after a rapid to X 1.
     let program = util::write(

@@ -1,11 +1,14 @@
 //! `transport = "can-slcan"` and `"can"`: three CiA 402 drives (X, Z, C) through a serial
 //! CAN adapter or a SocketCAN interface, and their `[connection.drives]` settings.
 
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 
 use super::{baud, default_baud, invalid, list, port, SettingError, MAX_WAIT_MS};
+use crate::config::eds::{Eds, EdsError};
 
 /// `transport = "can-slcan"`: three CiA 402 drives through a serial CAN adapter.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -70,6 +73,64 @@ pub struct DriveSettings {
     /// The drives' mode of operation: `"csp"` (the default) or `"ip"`.
     #[serde(default)]
     pub mode: DriveMode,
+    /// The drives' electronic data sheets (CiA 306), which the objects the master uses
+    /// are checked against before anything is sent; absent: not checked.
+    #[serde(default)]
+    pub eds: Option<EdsFiles>,
+    /// The data sheets `eds` names, as read by [`DriveSettings::read_data_sheets`] (which
+    /// a profile's loading runs), X, Z and C; `None` until then.
+    #[serde(skip)]
+    pub data_sheets: Option<[Arc<Eds>; 3]>,
+}
+
+/// `connection.drives.eds`: one EDS for all three drives (`eds = "drive.eds"`, one model
+/// on every axis), or one each, X, Z and C in the order of `nodes` (`eds = ["x.eds",
+/// "z.eds", "c.eds"]`, where the axes have drives of different models or sizes). A
+/// relative path is relative to the machine profile's folder.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[serde(untagged)]
+pub enum EdsFiles {
+    /// One file for every drive.
+    All(PathBuf),
+    /// One file each, X, Z, C.
+    Each([PathBuf; 3]),
+}
+
+impl<'de> Deserialize<'de> for EdsFiles {
+    /// A string or an array of three strings; anything else is refused with both forms
+    /// named (the table's reader puts the key, `connection.drives.eds`, in front).
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let refuse = |what: String| {
+            serde::de::Error::custom(format!(
+                "{what} must be a path (`eds = \"drive.eds\"`, one EDS for all three \
+                 drives) or three, X, Z and C (`eds = [\"x.eds\", \"z.eds\", \"c.eds\"]`)"
+            ))
+        };
+        match toml::Value::deserialize(deserializer)? {
+            toml::Value::String(path) => Ok(EdsFiles::All(path.into())),
+            toml::Value::Array(items) => {
+                let paths: Option<Vec<PathBuf>> = items
+                    .iter()
+                    .map(|item| item.as_str().map(PathBuf::from))
+                    .collect();
+                match paths.map(<[PathBuf; 3]>::try_from) {
+                    Some(Ok(paths)) => Ok(EdsFiles::Each(paths)),
+                    _ => Err(refuse(toml::Value::Array(items).to_string())),
+                }
+            }
+            other => Err(refuse(other.to_string())),
+        }
+    }
+}
+
+impl EdsFiles {
+    /// The X, Z and C drives' files.
+    pub fn paths(&self) -> [&Path; 3] {
+        match self {
+            EdsFiles::All(path) => [path.as_path(); 3],
+            EdsFiles::Each([x, z, c]) => [x.as_path(), z.as_path(), c.as_path()],
+        }
+    }
 }
 
 /// `connection.drives.mode`: how the set-points reach the drives, one a SYNC either way.
@@ -161,6 +222,30 @@ impl DriveSettings {
     /// The ring's spin-up hold after M3.
     pub fn spin_up(&self) -> Duration {
         Duration::from_millis(u64::from(self.spin_up_ms))
+    }
+
+    /// Reads the data sheets `eds` names, each file once, a relative path from `folder`
+    /// (the machine profile's): a file that cannot be read or is not CiA 306's syntax is
+    /// refused naming it (and the line). Without `eds` it reads nothing.
+    pub fn read_data_sheets(&mut self, folder: &Path) -> Result<(), EdsError> {
+        let Some(files) = &self.eds else {
+            return Ok(());
+        };
+        let mut read: Vec<(&Path, Arc<Eds>)> = Vec::new();
+        let mut sheets = Vec::with_capacity(3);
+        for path in files.paths() {
+            let sheet = match read.iter().find(|(p, _)| *p == path) {
+                Some((_, sheet)) => Arc::clone(sheet),
+                None => {
+                    let sheet = Arc::new(Eds::load(&folder.join(path))?);
+                    read.push((path, Arc::clone(&sheet)));
+                    sheet
+                }
+            };
+            sheets.push(sheet);
+        }
+        self.data_sheets = Some(sheets.try_into().expect("three drives"));
+        Ok(())
     }
 
     /// Checks every value, naming the key; whether the counts hold the machine's travel

@@ -18,7 +18,8 @@
 //! | `linuxcnc` | a LinuxCNC machine through `linuxcncrsh`, G-code it opens and runs | [`LinuxcncSettings`] |
 //!
 //! The CAN kinds share their drives' settings, a nested `[connection.drives]` table
-//! ([`DriveSettings`]). Every table denies unknown keys (a key of another transport
+//! ([`DriveSettings`]), whose `eds` names the drives' data sheets ([`EdsFiles`]), read
+//! with the profile ([`crate::config::eds`]). Every table denies unknown keys (a key of another transport
 //! included), most keys have defaults, and [`Connection::validate`] checks the values,
 //! naming the key and what it must be. A profile's loading runs it, and then checks that
 //! the connection fits the machine (a serial line needs grblHAL, the drives' counts must
@@ -55,8 +56,8 @@ mod modbus;
 mod serial;
 
 pub use can::{
-    DriveMode, DriveSettings, SlcanSettings, SocketCanSettings, CAN_BITRATES, MAX_CYCLE_US,
-    MIN_CYCLE_US,
+    DriveMode, DriveSettings, EdsFiles, SlcanSettings, SocketCanSettings, CAN_BITRATES,
+    MAX_CYCLE_US, MIN_CYCLE_US,
 };
 pub use linuxcnc::LinuxcncSettings;
 pub use modbus::{ModbusRtuSettings, ModbusTcpSettings, MODBUS_RTU_BAUDS};
@@ -209,6 +210,15 @@ impl Connection {
         match self {
             Connection::CanSlcan(slcan) => Some(&slcan.drives),
             Connection::Can(can) => Some(&can.drives),
+            _ => None,
+        }
+    }
+
+    /// The drives' settings of a CAN connection, to change.
+    pub fn drives_mut(&mut self) -> Option<&mut DriveSettings> {
+        match self {
+            Connection::CanSlcan(slcan) => Some(&mut slcan.drives),
+            Connection::Can(can) => Some(&mut can.drives),
             _ => None,
         }
     }

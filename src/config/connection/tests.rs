@@ -93,6 +93,8 @@ fn minimal_tables_take_the_defaults() {
         following_error_window: 10_000,
         spin_up_ms: 2000,
         mode: DriveMode::Csp,
+        eds: None,
+        data_sheets: None,
     };
     let slcan: Connection = toml::from_str(SLCAN).unwrap();
     assert_eq!(
@@ -679,4 +681,94 @@ fn modbus_settings_give_the_address_and_timeout() {
         timeout_ms: 1000,
     };
     assert_eq!(rtu.timeout(), Duration::from_secs(1));
+}
+
+/// The test drive's EDS, which python-canopen reads too.
+const DRIVE_EDS: &str = include_str!("../../../tests/data/cia402-drive.eds");
+
+/// A profile with the slcan drives and `eds` written to `dir/profile.toml`, loaded.
+fn load_with_eds(dir: &std::path::Path, eds: &str) -> Result<MachineProfile, ProfileError> {
+    let path = dir.join("profile.toml");
+    std::fs::write(&path, profile_text(&format!("{SLCAN}eds = {eds}\n"))).unwrap();
+    MachineProfile::load(&path)
+}
+
+#[test]
+fn the_drives_eds_is_read_from_the_profiles_folder_once_or_per_drive() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("drives")).unwrap();
+    std::fs::write(dir.path().join("drives/servo.eds"), DRIVE_EDS).unwrap();
+    std::fs::write(dir.path().join("spindle.eds"), DRIVE_EDS).unwrap();
+    // One file for all three drives: read once, from the profile's folder (not the
+    // working directory, where drives/servo.eds is not).
+    let profile = load_with_eds(dir.path(), "\"drives/servo.eds\"").unwrap();
+    let drives = profile.connection.as_ref().unwrap().drives().unwrap();
+    assert_eq!(drives.eds, Some(EdsFiles::All("drives/servo.eds".into())));
+    let [x, z, c] = drives.data_sheets.clone().expect("read at load");
+    assert!(std::sync::Arc::ptr_eq(&x, &z) && std::sync::Arc::ptr_eq(&z, &c));
+    assert_eq!(x.path(), dir.path().join("drives/servo.eds"));
+    assert!(x.object(0x607A, 0).is_some());
+    // One each, X, Z, C: the same path read once.
+    let profile = load_with_eds(
+        dir.path(),
+        "[\"drives/servo.eds\", \"drives/servo.eds\", \"spindle.eds\"]",
+    )
+    .unwrap();
+    let drives = profile.connection.as_ref().unwrap().drives().unwrap();
+    let [x, z, c] = drives.data_sheets.clone().unwrap();
+    assert!(std::sync::Arc::ptr_eq(&x, &z) && !std::sync::Arc::ptr_eq(&z, &c));
+    assert_eq!(c.path(), dir.path().join("spindle.eds"));
+    // Written back as given.
+    let written = toml::to_string(profile.connection.as_ref().unwrap()).unwrap();
+    assert!(
+        written.contains("eds = [\"drives/servo.eds\", \"drives/servo.eds\", \"spindle.eds\"]"),
+        "{written}"
+    );
+    // Without `eds`, nothing is read.
+    let drives = toml::from_str::<Connection>(SLCAN).unwrap();
+    assert_eq!(drives.drives().unwrap().data_sheets, None);
+}
+
+#[test]
+fn an_eds_that_cannot_be_read_is_refused_at_load_naming_the_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let message = load_with_eds(dir.path(), "\"absent.eds\"")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("connection.drives.eds: cannot read EDS file")
+            && message.contains(&dir.path().join("absent.eds").display().to_string()),
+        "{message}"
+    );
+    std::fs::write(
+        dir.path().join("broken.eds"),
+        "[FileInfo]\nFileName broken.eds\n",
+    )
+    .unwrap();
+    let message = load_with_eds(
+        dir.path(),
+        "[\"broken.eds\", \"broken.eds\", \"broken.eds\"]",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        message.contains(&format!(
+            "connection.drives.eds: EDS file {}, line 2: ",
+            dir.path().join("broken.eds").display()
+        )),
+        "{message}"
+    );
+}
+
+#[test]
+fn eds_is_one_path_or_three() {
+    for value in ["7", "[\"a.eds\", \"b.eds\"]", "[\"a.eds\", 1, \"c.eds\"]"] {
+        let message = unparsed(&format!("{SLCAN}eds = {value}\n"));
+        assert!(
+            message.contains("connection.drives.eds: ")
+                && message.contains("must be a path")
+                && message.contains("three, X, Z and C"),
+            "{value}: {message}"
+        );
+    }
 }

@@ -146,7 +146,9 @@ impl Default for SessionConfig {
 impl SessionConfig {
     /// The session for a profile's drives: their nodes, heartbeat, following error window
     /// and mode, every other setting at [`SessionConfig::default`]. An error, naming the
-    /// key, for settings [`DriveSettings::validate`] refuses.
+    /// key, for settings [`DriveSettings::validate`] refuses, or for data sheets
+    /// (`connection.drives.eds`) that lack an object the session uses as it uses it
+    /// ([`objects_used`](super::objects_used)).
     pub fn for_drives(drives: &DriveSettings) -> Result<SessionConfig, SettingError> {
         drives.validate()?;
         let mut nodes = SessionConfig::default().nodes;
@@ -156,6 +158,7 @@ impl SessionConfig {
                 problem: e.to_string(),
             })?;
         }
+        super::objects::check_data_sheets(drives)?;
         Ok(SessionConfig {
             nodes,
             heartbeat_ms: drives.heartbeat_ms,

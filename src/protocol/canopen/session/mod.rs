@@ -19,7 +19,9 @@
 //!    interpolation data record's first entry, 60C1h sub-index 1) and TPDO1 = statusword
 //!    6041h + position actual 6064h, both every SYNC, by CiA 301's mapping procedure
 //!    ([`cia301::pdo_mapping`]). Heartbeat supervision of a node starts when its 1017h
-//!    write is confirmed.
+//!    write is confirmed. Where the profile gives the drives' data sheets
+//!    (`connection.drives.eds`), [`SessionConfig::for_drives`] has checked every one of
+//!    these objects against them ([`objects_used`]) before any of this is sent.
 //! 3. **Start and enable.** NMT start to each node, and the cycle starts: every period,
 //!    each drive's RPDO1 and then one SYNC. The first SYNC only asks for the TPDOs; from
 //!    each drive's first TPDO on, its target is its actual position (CiA 402: in CSP a
@@ -89,6 +91,7 @@
 
 mod config;
 mod events;
+mod objects;
 mod script;
 #[cfg(test)]
 mod tests;
@@ -110,6 +113,7 @@ use script::{configuration, Op};
 
 pub use config::{Operation, SessionConfig, SessionError};
 pub use events::{emcy_meaning, DriveStatus, Event, StopReason};
+pub use objects::objects_used;
 
 /// Where the session is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

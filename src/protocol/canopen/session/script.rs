@@ -3,7 +3,7 @@
 
 use std::collections::VecDeque;
 
-use super::SessionConfig;
+use super::{Operation, SessionConfig};
 use crate::protocol::canopen::cia301::{
     self, MapEntry, NodeId, PdoConfig, PdoDirection, PdoNumber, SdoWrite, EVERY_SYNC,
 };
@@ -44,14 +44,25 @@ pub(super) fn configuration(node: NodeId, config: &SessionConfig, cycle: (u8, i8
             cycle.1 as u8,
         )),
     ]);
+    let mappings = mappings(config.operation);
+    for mapping in &mappings {
+        let writes = cia301::pdo_mapping(node, mapping).expect("48 bits, valid entries");
+        ops.extend(writes.into_iter().map(Op::Write));
+    }
+    ops
+}
+
+/// The PDOs the session maps on every drive: RPDO1 the controlword and the mode's
+/// set-point, TPDO1 the statusword and the position actual value, both every SYNC.
+pub(super) fn mappings(operation: Operation) -> [PdoConfig; 2] {
     let pdo = PdoNumber::new(1).expect("PDO 1");
     let entry = |index, bits| MapEntry {
         index,
         sub: 0,
         bits,
     };
-    let (set_point, sub) = config.operation.set_point_object();
-    let mappings = [
+    let (set_point, sub) = operation.set_point_object();
+    [
         PdoConfig {
             direction: PdoDirection::Receive,
             number: pdo,
@@ -74,10 +85,5 @@ pub(super) fn configuration(node: NodeId, config: &SessionConfig, cycle: (u8, i8
                 entry(object::POSITION_ACTUAL, 32),
             ],
         },
-    ];
-    for mapping in &mappings {
-        let writes = cia301::pdo_mapping(node, mapping).expect("48 bits, valid entries");
-        ops.extend(writes.into_iter().map(Op::Write));
-    }
-    ops
+    ]
 }

@@ -6,6 +6,7 @@ mod configuration;
 mod feed_override;
 mod gentle;
 mod hold;
+mod objects;
 mod run;
 mod stops;
 
