@@ -1201,6 +1201,22 @@ fn state_at_both_sizes(page: &Session, state: &str, word: &str, class: &str, ena
         });
         let banner = page.script("return document.getElementById('run-banner').className");
         assert_eq!(banner, format!("banner {class}"), "{state}");
+        // Its words readable on its colour: WCAG 2.1's contrast ratio for large text (the
+        // banner's is over 24 px), at least 3:1, from the two colours as drawn.
+        let contrast = page.script(
+            "const s = getComputedStyle(document.getElementById('run-banner-word')); \
+             const b = getComputedStyle(document.getElementById('run-banner')); \
+             const lum = (c) => { const v = c.match(/[0-9.]+/g).slice(0, 3).map(Number) \
+               .map((x) => x / 255).map((x) => x <= 0.03928 ? x / 12.92 : \
+               Math.pow((x + 0.055) / 1.055, 2.4)); \
+               return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }; \
+             const [l1, l2] = [lum(s.color), lum(b.backgroundColor)]; \
+             return (Math.max(l1, l2) + 0.05) / (Math.min(l1, l2) + 0.05);",
+        );
+        assert!(
+            contrast.as_f64() >= Some(3.0),
+            "{state} at {width}×{height}: the banner's words contrast {contrast}:1 with it"
+        );
         assert_eq!(buttons(page), enabled, "{state} at {width}×{height}");
         let overflow =
             page.script("return [document.documentElement.scrollWidth, window.innerWidth]");

@@ -86,7 +86,7 @@ function provenanceText(p) {
 function safetyText(s) {
   const reach = s.loopback ? "Loopback only (" + s.listen + ")" :
     "Reachable from the network at " + s.listen;
-  const hosts = "answers to " + s.hosts.join(", ");
+  const hosts = "answers to " + [...new Set(s.hosts)].join(", ");
   const guard = s.token_required ?
     "a token guards every action" + (s.authorised ? " (this page is logged in)" : " (log in to act)") :
     "no token: any program of this computer's users can act";
@@ -98,6 +98,14 @@ function safetyText(s) {
 // taken outside this console tells no event.
 let locks = [];
 let locksAt = 0;
+
+// At most one fetch a second as runs change, the last change always fetched after it.
+let locksSoon = null;
+function fetchLocksSoon() {
+  if (locksSoon) return;
+  const wait = Math.max(0, 1000 - (Date.now() - locksAt));
+  locksSoon = setTimeout(() => { locksSoon = null; fetchLocks(); }, wait);
+}
 
 async function fetchLocks() {
   locksAt = Date.now();
@@ -544,6 +552,7 @@ async function main() {
   $("feed-down").onclick = () => feed({ step: -10 });
   $("feed-reset").onclick = () => feed({ percent: 100 });
   $("feed-up").onclick = () => feed({ step: 10 });
+  setInterval(fetchLocks, 3000);
   const events = new EventSource("/api/events");
   events.addEventListener("runs", (event) => {
     views = JSON.parse(event.data);
@@ -552,7 +561,7 @@ async function main() {
     document.body.classList.remove("console-gone");
     render();
     historyOnEnd();
-    if (Date.now() - locksAt > 1000) fetchLocks();
+    fetchLocksSoon();
   });
   // The console gone is said at once, in red: its buttons no longer reach the machine.
   const gone = (words) => {
