@@ -123,13 +123,18 @@ fn half_period_csv(n: usize) -> String {
 /// spline fit and the whole plan, as `whirl plan` does but for the file reads and writes.
 #[divan::bench(args = [10_000, 100_000, 1_000_000], sample_count = 5)]
 fn dense_profile(bencher: Bencher, n: usize) {
-    let csv = half_period_csv(n);
+    plan_from_points(bencher, &half_period_csv(n), true);
+}
+
+/// The double-start job planned from the points file `csv` (a half period to mirror, or a
+/// whole one), the text read and the points fitted in every round.
+fn plan_from_points(bencher: Bencher, csv: &str, mirror: bool) {
     let job = example("double-start");
     let machine = MachineProfile::builtin_sim().unwrap();
     bencher.bench(|| {
-        let rows = points::read_csv(black_box(&csv)).unwrap();
+        let rows = points::read_csv(black_box(csv)).unwrap();
         let mut job = job.clone();
-        job.profile = points::profile(&rows, Section::Transverse, true, job.p(), 2).unwrap();
+        job.profile = points::profile(&rows, Section::Transverse, mirror, job.p(), 2).unwrap();
         black_box(
             whirl::judge::refine::plan(&job, &machine)
                 .unwrap()
@@ -167,18 +172,5 @@ fn fit_rounded_points(bencher: Bencher, n: usize) {
 /// does but for the file reads and writes (issue 23: 200 000 points under 5 s).
 #[divan::bench(args = [2_000, 200_000], sample_count = 3)]
 fn plan_rounded_points(bencher: Bencher, n: usize) {
-    let csv = period_csv_4(n);
-    let job = example("double-start");
-    let machine = MachineProfile::builtin_sim().unwrap();
-    bencher.bench(|| {
-        let rows = points::read_csv(black_box(&csv)).unwrap();
-        let mut job = job.clone();
-        job.profile = points::profile(&rows, Section::Transverse, false, job.p(), 2).unwrap();
-        black_box(
-            whirl::judge::refine::plan(&job, &machine)
-                .unwrap()
-                .report
-                .segments,
-        )
-    });
+    plan_from_points(bencher, &period_csv_4(n), false);
 }

@@ -258,20 +258,7 @@ fn a_busy_machine_refuses_a_second_run_and_a_stream_from_another_terminal() {
     // A machine on a serial port (a plain file here: nothing opens it while it is locked).
     let port = dir.path().join("ttyUSB7");
     std::fs::write(&port, "").unwrap();
-    let profile = dir.path().join("lathe.toml");
-    let text = std::fs::read_to_string(repo().join("machine-profiles/sim.toml")).unwrap();
-    std::fs::write(
-        &profile,
-        format!(
-            "{}\n[connection]\ntransport = \"serial\"\nport = \"{}\"\n",
-            text.replace(
-                "name = \"whirl-sim: simulated XZC whirling lathe\"",
-                "name = \"lathe 7\""
-            ),
-            port.display()
-        ),
-    )
-    .unwrap();
+    let profile = lathe_on(dir.path(), "lathe 7", &port);
     let serve = Serve::start_in(dir, &["--machine", profile.to_str().unwrap()]);
     let first = serve.post("/api/runs", &[], &run_request("lathe 7", 0.5));
     assert_eq!(first.status, 200, "{}", first.body);
@@ -1062,20 +1049,7 @@ fn a_stream_to_the_machine_goes_over_its_profiles_connection_and_is_recorded() {
     let jobs = short_jobs(dir.path());
     let tty = dir.path().join("ttyWHIRL");
     let _sim = Sim::serving(&tty);
-    let profile = dir.path().join("lathe.toml");
-    let text = std::fs::read_to_string(repo().join("machine-profiles/sim.toml")).unwrap();
-    std::fs::write(
-        &profile,
-        format!(
-            "{}\n[connection]\ntransport = \"serial\"\nport = \"{}\"\n",
-            text.replace(
-                "name = \"whirl-sim: simulated XZC whirling lathe\"",
-                "name = \"lathe 9\""
-            ),
-            tty.display()
-        ),
-    )
-    .unwrap();
+    let profile = lathe_on(dir.path(), "lathe 9", &tty);
     let serve = Serve::start_with_jobs(
         dir,
         &jobs,
@@ -1150,9 +1124,9 @@ fn a_stream_to_the_machine_goes_over_its_profiles_connection_and_is_recorded() {
     );
 }
 
-/// A machine profile "lathe 9": the simulator's, its `[connection]` the serial port at
+/// A machine profile named `name`: the simulator's, its `[connection]` the serial port at
 /// `tty`; written into `dir`.
-fn lathe_on(dir: &Path, tty: &Path) -> PathBuf {
+fn lathe_on(dir: &Path, name: &str, tty: &Path) -> PathBuf {
     let profile = dir.join("lathe.toml");
     let text = std::fs::read_to_string(repo().join("machine-profiles/sim.toml")).unwrap();
     std::fs::write(
@@ -1161,7 +1135,7 @@ fn lathe_on(dir: &Path, tty: &Path) -> PathBuf {
             "{}\n[connection]\ntransport = \"serial\"\nport = \"{}\"\n",
             text.replace(
                 "name = \"whirl-sim: simulated XZC whirling lathe\"",
-                "name = \"lathe 9\""
+                &format!("name = \"{name}\"")
             ),
             tty.display()
         ),
@@ -1278,7 +1252,7 @@ fn the_run_page_reads_at_a_glance_running_held_in_alarm_and_stopped_at_both_size
     std::fs::write(&tight, text.replace("delta = 0.01\n", "delta = 0.0001\n")).unwrap();
     let tty = dir.path().join("ttyWHIRL");
     let _sim = Sim::serving_with(&tty, &["--job".as_ref(), tight.as_os_str()]);
-    let profile = lathe_on(dir.path(), &tty);
+    let profile = lathe_on(dir.path(), "lathe 9", &tty);
     let profile_sha = sha256(&std::fs::read(&profile).unwrap());
     let serve = Serve::start_with_jobs(dir, &jobs, &["--machine", profile.to_str().unwrap()]);
     let driver = Driver::start(&chromedriver);

@@ -16,6 +16,7 @@
 //! own line.
 
 use super::smoothing::{self, Spread};
+use super::spline::Spline;
 use super::{Fit, Piece, Profile, Rounding};
 use num_complex::Complex64;
 use std::f64::consts::PI;
@@ -376,19 +377,23 @@ pub fn profile_within(
         Some(_) => Some(Spread::Scatter),
         None => matters.then_some(Spread::Rounding),
     };
-    let band: Vec<f64> = full.iter().map(|q| q.err).collect();
-    let curve = match spread {
-        Some(spread) => smoothing::fit(&zs, &band, spread, period),
-        None => smoothing::fit(&zs, &vec![0.0; zs.len()], Spread::Rounding, period),
+    let (spline, fit) = match spread {
+        Some(spread) => {
+            let band: Vec<f64> = full.iter().map(|q| q.err).collect();
+            let curve = smoothing::fit(&zs, &band, spread, period);
+            let fit = Fit {
+                deviation: curve.deviation,
+                line: full[curve.worst].row.line,
+                band: band.iter().copied().fold(0.0, f64::max),
+                spread,
+            };
+            (curve.spline, Some(fit))
+        }
+        None => (Spline::periodic(&zs, period), None),
     };
-    let mut fitted = Profile::new(vec![Piece::Spline(curve.spline)], period);
+    let mut fitted = Profile::new(vec![Piece::Spline(spline)], period);
     fitted.rounding = bends;
-    fitted.fit = spread.map(|spread| Fit {
-        deviation: curve.deviation,
-        line: full[curve.worst].row.line,
-        band: band.iter().copied().fold(0.0, f64::max),
-        spread,
-    });
+    fitted.fit = fit;
     Ok(fitted)
 }
 
@@ -999,7 +1004,6 @@ impl Cubic {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::profile::spline::Spline;
     use std::f64::consts::TAU;
 
     const HAN_LIU: &str = include_str!(concat!(
