@@ -42,6 +42,7 @@
 use glam::DVec2;
 
 mod ball_arc;
+pub mod designation;
 mod trapezoid;
 
 pub use ball_arc::BallArc;
@@ -308,7 +309,80 @@ pub enum StandardProfile {
     BallArc(BallArc),
 }
 
+/// One dimension of a standard form as `whirl profile` and the console's job page list it:
+/// what the shop checks the drawing against.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dimension {
+    /// What it is, in the standard's words and symbol ("thread height h3").
+    pub name: &'static str,
+    /// Its value in `unit`.
+    pub value: f64,
+    /// `"mm"` or `"°"`.
+    pub unit: &'static str,
+}
+
+impl Dimension {
+    /// A length, mm.
+    pub fn mm(name: &'static str, value: f64) -> Dimension {
+        Dimension {
+            name,
+            value,
+            unit: "mm",
+        }
+    }
+
+    /// An angle, degrees.
+    pub fn deg(name: &'static str, value: f64) -> Dimension {
+        Dimension {
+            name,
+            value,
+            unit: "°",
+        }
+    }
+}
+
 impl StandardProfile {
+    /// The standard (and edition, table) the form's rules come from.
+    pub fn source(&self) -> &'static str {
+        match self {
+            StandardProfile::IsoTrapezoidal(_) => "ISO 2901:2016 basic profile, ISO 2904:2020 a_c",
+            StandardProfile::Acme(_) => "ASME B1.5-1997 general purpose Acme",
+            StandardProfile::BallArc(_) => "circular-arc ball-screw raceway (catalogue data)",
+        }
+    }
+
+    /// The form's dimensions at this axial pitch (mm): depth, flank angles, radii,
+    /// diameters, as the standard names them.
+    pub fn dimensions(&self, pitch: f64) -> Result<Vec<Dimension>, StandardError> {
+        Ok(match self {
+            StandardProfile::IsoTrapezoidal(t) => vec![
+                Dimension::mm("major diameter d", t.major_diameter()),
+                Dimension::mm("pitch diameter d2", t.major_diameter() - 0.5 * pitch),
+                Dimension::mm("minor diameter d3", t.minor_diameter(pitch)?),
+                Dimension::mm("thread height h3", t.thread_height(pitch)?),
+                Dimension::mm("crest clearance a_c", t.crest_clearance(pitch)?),
+                Dimension::deg("flank angle", 2.0 * IsoTrapezoidal::FLANK_HALF_ANGLE_DEG),
+                Dimension::mm("root radius", t.root_radius()),
+            ],
+            StandardProfile::Acme(a) => vec![
+                Dimension::mm("major diameter", a.major_diameter()),
+                Dimension::mm("pitch diameter", a.major_diameter() - 0.5 * pitch),
+                Dimension::mm("minor diameter", a.minor_diameter(pitch)?),
+                Dimension::mm("thread height", a.thread_height(pitch)?),
+                Dimension::deg("flank angle", 2.0 * AcmeGeneralPurpose::FLANK_HALF_ANGLE_DEG),
+                Dimension::mm("root radius", a.root_radius()),
+            ],
+            StandardProfile::BallArc(b) => vec![
+                Dimension::mm("outer diameter", b.outer_diameter()),
+                Dimension::mm("ball diameter D_w", b.ball_diameter()),
+                Dimension::mm("ball-centre diameter d_0", b.pitch_circle_diameter()),
+                Dimension::mm("groove radius r_g", b.groove_radius()),
+                Dimension::mm("groove depth", b.depth()),
+                Dimension::mm("groove width", b.groove_width()),
+            ],
+        })
+    }
+
     /// Outer (major) diameter of the shaft (mm): the crest radius is half of it.
     pub fn outer_diameter(&self) -> f64 {
         match self {
