@@ -29,7 +29,7 @@ use whirl::protocol::canopen::slcan::Bitrate;
 use whirl::transport::can::{stream_can, CanClock, CanError, CanLink, CanOptions, CanOutcome};
 use whirl::transport::{Progress, Unit};
 use whirl_sim::canopen::serve::{serve_slcan, ServeOptions, SharedBus};
-use whirl_sim::canopen::{Bus, BusConfig, BusEvent, DriveEvent, PowerState};
+use whirl_sim::canopen::{Bus, BusConfig, BusEvent, DriveEvent, NmtState, PowerState};
 use whirl_sim::{ExecutedBlock, Position as SimPosition};
 
 /// Cycles a SYNC-locked run may have sent and not yet had acknowledged: the transport's
@@ -178,6 +178,9 @@ struct Seen {
     /// Power states the drives entered: (node, state, the SYNC whose frames it came with,
     /// 1-based: the one after the last executed cycle).
     power: Vec<(u8, PowerState, u64)>,
+    /// NMT states the drives entered: (node, state, simulated time), for a run that ends
+    /// early to say which side lost what.
+    nmt: Vec<(u8, NmtState, Duration)>,
 }
 
 impl Seen {
@@ -191,6 +194,10 @@ impl Seen {
                 let sync = self.executed.last().map_or(0, |b| b.line) + 1;
                 self.power.push((*node, *state, sync));
             }
+            BusEvent::Drive {
+                node,
+                event: DriveEvent::Nmt { state, time },
+            } => self.nmt.push((*node, *state, *time)),
             _ => {}
         }
     }
@@ -411,8 +418,15 @@ async fn run_and_act_at(at: u64, act: impl FnOnce(&mut Bus)) -> Acted {
     .await
     .expect("a stopped run is an outcome, not an error");
     eprintln!("stopped after {:?}: {:?}", began.elapsed(), outcome.stop);
-    let at_sync =
-        at_sync.unwrap_or_else(|| panic!("the job ended before cycle {at}: {:?}", outcome.stop));
+    let at_sync = at_sync.unwrap_or_else(|| {
+        panic!(
+            "the job ended before cycle {at}: {:?}; the drives' NMT states (node, state, \
+             bus time): {:?}; the bridge's log: {:?}",
+            outcome.stop,
+            seen.nmt,
+            std::fs::read_to_string(&log_path)
+        )
+    });
     Acted {
         outcome,
         seen,
