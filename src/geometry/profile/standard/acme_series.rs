@@ -148,3 +148,6 @@ fn size_inches(size: &str) -> Result<f64, String> {
         _ => Err(format!("the size `{size}` is not a size in inches")),
     }
 }
+
+#[cfg(test)]
+mod tests;

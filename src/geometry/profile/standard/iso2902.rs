@@ -178,3 +178,6 @@ fn neighbours(d: f64) -> Vec<f64> {
     let above = sizes.iter().position(|s| *s > d).unwrap_or(sizes.len());
     sizes[above.saturating_sub(1)..(above + 1).min(sizes.len())].to_vec()
 }
+
+#[cfg(test)]
+mod tests;
