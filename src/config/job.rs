@@ -488,8 +488,8 @@ impl JobText {
         if designation.as_ref().is_some_and(Designation::internal) {
             return Err(JobError::ProfileSpec(format!(
                 "designation = \"{text}\" names an internal thread (a nut, ISO's capital \
-                 tolerance class); a job's groove is cut on a screw: give the screw's class \
-                 (7e)"
+                 tolerance class); a job's groove is cut on a screw: give the screw's \
+                 class (small letters: 7e, 6g)"
             )));
         }
         let disagree = |key, value: String, given: String| JobError::DisagreesWithDesignation {

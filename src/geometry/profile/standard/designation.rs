@@ -5,7 +5,7 @@
 //! from its standard's tables or refuses it naming what is wrong (a size the table does not
 //! have, a pitch that does not belong to the size, a malformed number).
 
-use super::{acme_series, iso2902, StandardError, StandardProfile};
+use super::{acme_series, iso2902, metric, StandardError, StandardProfile};
 
 /// What a designation fixes: the form, and the lead, starts and hand where it says them.
 #[derive(Debug, Clone, PartialEq)]
@@ -59,19 +59,21 @@ pub enum DesignationError {
 type Reader = fn(&str) -> Option<Result<Designation, DesignationError>>;
 
 /// The families asked in turn, most specific first.
-const FAMILIES: &[Reader] = &[iso2902::read, acme_series::read];
+const FAMILIES: &[Reader] = &[iso2902::read, acme_series::read, metric::read];
 
 impl Designation {
     /// Whether the designation names an internal thread (a nut): ISO's tolerance classes
-    /// write the internal thread's tolerance position in capitals (ISO 2903: `7H`), the
-    /// external's in small letters (`7e`). (ASME's Acme classes, `2G`, name both; a job says
+    /// write the internal thread's tolerance position in capitals (ISO 2903: `7H`, ISO 965-1:
+    /// `6H`), the external's in small letters (`7e`, `6g`). (ASME's Acme classes, `2G`, name both; a job says
     /// which it cuts.)
     pub fn internal(&self) -> bool {
-        matches!(self.form, StandardProfile::IsoTrapezoidal(_))
-            && self
-                .class
-                .as_deref()
-                .is_some_and(|class| class.chars().any(|c| c.is_ascii_uppercase()))
+        matches!(
+            self.form,
+            StandardProfile::IsoTrapezoidal(_) | StandardProfile::IsoMetric(_)
+        ) && self
+            .class
+            .as_deref()
+            .is_some_and(|class| class.chars().any(|c| c.is_ascii_uppercase()))
     }
 }
 

@@ -146,16 +146,15 @@ fn read_size(rest: &str) -> Result<Designation, String> {
 }
 
 /// Splits the tolerance class off the end: after a dash (`40x7-7e`), or as the last word when
-/// it has the form digit and letter (`40x7 7e`). A class not among ISO 2903's is refused.
+/// it has the form of one, a digit and a letter (`40x7 7e`). A class not among ISO 2903's is refused.
 fn split_class(rest: &str) -> Result<(&str, Option<String>), String> {
     let (body, class) = match rest.split_once('-') {
         Some((body, class)) => (body, class.trim()),
         None => match rest.trim_end().rsplit_once(char::is_whitespace) {
             Some((body, last))
-                if last.len() >= 2
+                if last.len() == 2
                     && last.starts_with(|c: char| c.is_ascii_digit())
-                    && last.ends_with(|c: char| c.is_ascii_alphabetic())
-                    && last != "LH" =>
+                    && last.ends_with(|c: char| c.is_ascii_alphabetic()) =>
             {
                 (body, last)
             }

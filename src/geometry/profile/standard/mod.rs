@@ -15,6 +15,8 @@
 //! - [`AcmeGeneralPurpose`]: general purpose Acme thread, ASME B1.5, 29° included angle,
 //!   external thread with the standard's minor-diameter allowance added below the basic root.
 //! - [`StubAcme`]: Stub Acme thread, ASME B1.8, 29° included angle, basic height 0.3·P.
+//! - [`IsoMetric`]: ISO general purpose metric thread, ISO 68-1 / ISO 965-1, 60°, the
+//!   external thread's root rounded to ISO 965-1's `d3`.
 //! - [`BallArc`]: single circular-arc ("ball-arc") ball-screw groove with zero contact angle.
 //!
 //! [`StandardProfile`] wraps them so a job can carry any of them; [`designation`] reads them
@@ -50,10 +52,12 @@ mod acme_series;
 mod ball_arc;
 pub mod designation;
 mod iso2902;
+mod metric;
 mod reading;
 mod trapezoid;
 
 pub use ball_arc::BallArc;
+pub use metric::IsoMetric;
 pub use trapezoid::{
     asme_b1_5_minor_diameter_allowance, iso2904_crest_clearance, AcmeGeneralPurpose,
     IsoTrapezoidal, StubAcme, MM_PER_INCH,
@@ -321,6 +325,8 @@ pub enum StandardProfile {
     Acme(AcmeGeneralPurpose),
     /// Stub Acme.
     StubAcme(StubAcme),
+    /// ISO metric (M).
+    IsoMetric(IsoMetric),
     /// Circular-arc ball-screw groove.
     BallArc(BallArc),
 }
@@ -364,6 +370,7 @@ impl StandardProfile {
             StandardProfile::IsoTrapezoidal(_) => "ISO 2901:2016 basic profile, ISO 2904:2020 a_c",
             StandardProfile::Acme(_) => "ASME B1.5-1997 general purpose Acme",
             StandardProfile::StubAcme(_) => "ASME/ANSI B1.8-1988 (R2021) Stub Acme",
+            StandardProfile::IsoMetric(_) => "ISO 68-1:1998 basic profile, ISO 965-1:2013 root",
             StandardProfile::BallArc(_) => "circular-arc ball-screw raceway (catalogue data)",
         }
     }
@@ -419,6 +426,25 @@ impl StandardProfile {
                 ),
                 Dimension::mm("root radius", a.root_radius()),
             ],
+            StandardProfile::IsoMetric(m) => vec![
+                Dimension::mm("major diameter d", m.major_diameter()),
+                Dimension::mm("pitch diameter d2", m.pitch_diameter(pitch)),
+                Dimension::mm(
+                    "minor diameter d3",
+                    m.major_diameter() - 2.0 * m.thread_height(pitch),
+                ),
+                Dimension::mm(
+                    "fundamental triangle height H",
+                    IsoMetric::fundamental_height(pitch),
+                ),
+                Dimension::mm("thread height h3", m.thread_height(pitch)),
+                Dimension::deg("flank angle", 2.0 * IsoMetric::FLANK_HALF_ANGLE_DEG),
+                Dimension::mm(
+                    "crest width",
+                    crest_width(pitch, 0.75 * IsoMetric::fundamental_height(pitch), 30.0),
+                ),
+                Dimension::mm("root radius R", IsoMetric::root_radius(pitch)),
+            ],
             StandardProfile::BallArc(b) => vec![
                 Dimension::mm("outer diameter", b.outer_diameter()),
                 Dimension::mm("ball diameter D_w", b.ball_diameter()),
@@ -436,6 +462,7 @@ impl StandardProfile {
             StandardProfile::IsoTrapezoidal(t) => t.major_diameter(),
             StandardProfile::Acme(a) => a.major_diameter(),
             StandardProfile::StubAcme(a) => a.major_diameter(),
+            StandardProfile::IsoMetric(m) => m.major_diameter(),
             StandardProfile::BallArc(b) => b.outer_diameter(),
         }
     }
@@ -446,6 +473,7 @@ impl StandardProfile {
             StandardProfile::IsoTrapezoidal(t) => t.pieces(pitch),
             StandardProfile::Acme(a) => a.pieces(pitch),
             StandardProfile::StubAcme(a) => a.pieces(pitch),
+            StandardProfile::IsoMetric(m) => m.pieces(pitch),
             StandardProfile::BallArc(b) => b.pieces(pitch),
         }
     }
@@ -459,9 +487,9 @@ impl StandardProfile {
             }
             StandardProfile::Acme(a) => StandardProfile::Acme(a.with_root_radius(radius)?),
             StandardProfile::StubAcme(a) => StandardProfile::StubAcme(a.with_root_radius(radius)?),
-            StandardProfile::BallArc(_) => {
+            StandardProfile::IsoMetric(_) | StandardProfile::BallArc(_) => {
                 return Err(StandardError::Negative {
-                    name: "root radius (a ball-arc groove has none)",
+                    name: "root radius (this form's root is the standard's own)",
                     value: radius,
                 })
             }
@@ -478,6 +506,7 @@ impl StandardProfile {
                 Ok(0.5 * (d - 0.5 * pitch))
             }
             StandardProfile::StubAcme(a) => Ok(0.5 * (d - a.basic_height(pitch))),
+            StandardProfile::IsoMetric(m) => Ok(0.5 * m.pitch_diameter(pitch)),
             StandardProfile::BallArc(_) => Err(StandardError::NoInternalForm {
                 form: "a ball-arc groove",
             }),
@@ -495,7 +524,12 @@ impl StandardProfile {
     /// diameter `d − 2h`, major diameter `d + allowance`), so the nut's section is the
     /// screw's reflected in ρ about the pitch line, root fillets included (ISO 2901's `R2`
     /// applies to the root corners of both).
+    /// The metric thread is the exception: ISO 68-1's nut is the basic profile, its root at
+    /// `D = d`, not the screw's rounded root mirrored ([`IsoMetric::internal_pieces`]).
     pub fn internal_pieces(&self, pitch: f64) -> Result<Vec<AxialPiece>, StandardError> {
+        if let StandardProfile::IsoMetric(m) = self {
+            return m.internal_pieces(pitch);
+        }
         let about = self.pitch_line_radius(pitch)?;
         Ok(self
             .pieces(pitch)?
@@ -540,6 +574,15 @@ impl StandardProfile {
                     "thread height",
                 ],
             ),
+            StandardProfile::IsoMetric(m) => {
+                let h1 = 0.625 * IsoMetric::fundamental_height(pitch);
+                return Ok(vec![
+                    Dimension::mm("major diameter D", d),
+                    Dimension::mm("pitch diameter D2", m.pitch_diameter(pitch)),
+                    Dimension::mm("minor diameter D1", d - 2.0 * h1),
+                    Dimension::mm("thread height H1", h1),
+                ]);
+            }
             StandardProfile::BallArc(_) => return Err(no_nut),
         };
         let minor = 2.0 * (2.0 * about - 0.5 * d);

@@ -30,7 +30,7 @@ const FULL_RADIUS_REL_EPS: f64 = 1e-9;
 ///
 /// The root corners are either sharp (`root_radius == 0`) or rounded by fillets tangent to
 /// the flank and the root flat; the crest corners are sharp.
-fn trapezoid_pieces(
+pub(super) fn trapezoid_pieces(
     pitch: f64,
     crest_rho: f64,
     basic_height: f64,
