@@ -56,10 +56,10 @@ fn a_designation_gives_the_form_lead_starts_and_hand_of_the_standard_example() {
         format!("{:?}", example.profile)
     );
     // LH sets the hand; a job may repeat what the designation says.
-    let left = with_groove(&format!(
+    let left = with_groove(
         "[groove]\nlead = 14.0\nstarts = 2\nhand = \"left\"\nz_start = 0.0\nlength = 40.0\n\
-         [groove.profile]\ndesignation = \"Tr 40x14 P7 LH\"\n"
-    ))
+         [groove.profile]\ndesignation = \"Tr 40x14 P7 LH\"\n",
+    )
     .unwrap();
     assert_eq!(left.groove.hand, Hand::Left);
 }
