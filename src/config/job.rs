@@ -6,6 +6,7 @@
 
 use crate::geometry::linkage::{Ring, Whirling};
 use crate::geometry::profile::points::{self, PointsError, Section};
+use crate::geometry::profile::standard::designation::{self, Designation, DesignationError};
 use crate::geometry::profile::standard::{
     AcmeGeneralPurpose, BallArc, IsoTrapezoidal, StandardError, StandardProfile,
 };
@@ -35,10 +36,34 @@ pub struct Job {
 /// The job file as written.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
+struct JobText {
+    groove: GrooveFile,
+    tool: Tool,
+    cut: CutFile,
+}
+
+/// The job file with its groove's lead, starts and hand settled (given, or fixed by the
+/// profile's designation).
+#[derive(Debug, Clone)]
 struct JobFile {
     groove: Groove,
     tool: Tool,
     cut: CutFile,
+    /// The profile's designation, read.
+    designation: Option<Designation>,
+}
+
+/// `[groove]` as written: lead, starts and hand may be left to a `[groove.profile]
+/// designation` that fixes them (`Tr 40x14 P7 LH`: lead 14 mm, 2 starts, left hand).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GrooveFile {
+    lead: Option<f64>,
+    starts: Option<u32>,
+    hand: Option<Hand>,
+    z_start: f64,
+    length: f64,
+    profile: ProfileSpec,
 }
 
 /// Right- or left-hand helix.
@@ -52,8 +77,7 @@ pub enum Hand {
 }
 
 /// `[groove]`.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone)]
 pub struct Groove {
     /// Lead, mm (axial advance of one groove per turn).
     pub lead: f64,
@@ -108,6 +132,10 @@ pub struct ProfileSpec {
     pub fit_tolerance: Option<f64>,
     /// A standard profile instead of points.
     pub standard: Option<StandardKind>,
+    /// A standard thread by its designation, as a drawing writes it (`Tr 40x7`,
+    /// `1/2-10 ACME-2G`), instead of points or `standard`: the form comes from the standard's
+    /// tables, and the lead, starts and hand from the designation.
+    pub designation: Option<String>,
     /// Trapezoidal, Acme: major diameter d, mm.
     pub major_diameter: Option<f64>,
     /// Trapezoidal, Acme: root fillet radius, mm.
@@ -299,6 +327,29 @@ pub enum JobError {
     /// Standard dimensions are wrong.
     #[error("[groove.profile] standard: {0}")]
     Standard(StandardError),
+    /// The designation is refused.
+    #[error("[groove.profile] designation = {0}")]
+    Designation(DesignationError),
+    /// A key the job must give (or a designation fix) is missing.
+    #[error("{key} is missing: {why}")]
+    Missing {
+        /// The TOML key.
+        key: &'static str,
+        /// What fixes it.
+        why: &'static str,
+    },
+    /// A value the job gives disagrees with the one its designation fixes.
+    #[error("{key} = {value} disagrees with designation = \"{designation}\", which gives {given}")]
+    DisagreesWithDesignation {
+        /// The TOML key.
+        key: &'static str,
+        /// The job's value.
+        value: String,
+        /// The designation.
+        designation: String,
+        /// The designation's value.
+        given: String,
+    },
 }
 
 /// A standard's dimensions, in the words of its own error (printed whole, not as a
@@ -322,10 +373,11 @@ impl Job {
     /// Read and check a job from its TOML text; `path` is where the text came from, named in
     /// errors, and its folder is where a profile's points file is read from.
     pub fn from_toml(text: &str, path: &Path) -> Result<Job, JobError> {
-        let file: JobFile = toml::from_str(text).map_err(|error| JobError::Parse {
+        let file: JobText = toml::from_str(text).map_err(|error| JobError::Parse {
             path: path.to_owned(),
             error: Box::new(error),
         })?;
+        let file = file.settle()?;
         file.validate()?;
         let profile = file.profile(path.parent().unwrap_or(Path::new("")))?;
         // Δ against the groove it is for: beyond the depth it bounds nothing. (The planner
@@ -338,7 +390,9 @@ impl Job {
                 why,
             });
         }
-        let JobFile { groove, tool, cut } = file;
+        let JobFile {
+            groove, tool, cut, ..
+        } = file;
         let cut = cut.resolve(&groove);
         Ok(Job {
             groove,
@@ -418,6 +472,97 @@ impl Groove {
     /// Polar period 2π / starts.
     pub fn period(&self) -> f64 {
         TAU / f64::from(self.starts)
+    }
+}
+
+impl JobText {
+    /// Settles the groove's lead, starts and hand: the job's own, or its designation's; where
+    /// both give one they must agree.
+    fn settle(self) -> Result<JobFile, JobError> {
+        let JobText { groove, tool, cut } = self;
+        let text = groove.profile.designation.as_deref();
+        let designation = text
+            .map(|text| designation::parse(text).map_err(JobError::Designation))
+            .transpose()?;
+        let text = text.unwrap_or_default();
+        if designation.as_ref().is_some_and(Designation::internal) {
+            return Err(JobError::ProfileSpec(format!(
+                "designation = \"{text}\" names an internal thread (a nut, ISO's capital \
+                 tolerance class); a job's groove is cut on a screw: give the screw's \
+                 class (small letters: 7e, 6g)"
+            )));
+        }
+        let disagree = |key, value: String, given: String| JobError::DisagreesWithDesignation {
+            key,
+            value,
+            designation: text.to_string(),
+            given,
+        };
+        let fixed = designation.as_ref();
+        let missing = "give it, or a [groove.profile] designation that fixes it (Tr 40x7)";
+        let lead = match (groove.lead, fixed.and_then(|d| d.lead)) {
+            (Some(job), Some(given)) if (job - given).abs() > 1e-9 * given => {
+                return Err(disagree(
+                    "groove.lead",
+                    show_number(job),
+                    show_number(given),
+                ))
+            }
+            (Some(lead), _) | (None, Some(lead)) => lead,
+            (None, None) => {
+                return Err(JobError::Missing {
+                    key: "groove.lead",
+                    why: missing,
+                })
+            }
+        };
+        let starts = match (groove.starts, fixed.and_then(|d| d.starts)) {
+            (Some(job), Some(given)) if job != given => {
+                return Err(disagree(
+                    "groove.starts",
+                    job.to_string(),
+                    given.to_string(),
+                ))
+            }
+            (Some(starts), _) | (None, Some(starts)) => starts,
+            (None, None) => {
+                return Err(JobError::Missing {
+                    key: "groove.starts",
+                    why: missing,
+                })
+            }
+        };
+        let given_hand = fixed.map(|d| if d.left_hand { Hand::Left } else { Hand::Right });
+        let hand = match (groove.hand, given_hand) {
+            (Some(job), Some(given)) if job != given => {
+                return Err(disagree(
+                    "groove.hand",
+                    format!("{job:?}").to_lowercase(),
+                    format!("{given:?}").to_lowercase(),
+                ))
+            }
+            (Some(hand), _) | (None, Some(hand)) => hand,
+            (None, None) => {
+                return Err(JobError::Missing {
+                    key: "groove.hand",
+                    why: "give \"right\" or \"left\", or a [groove.profile] designation \
+                          (right hand unless it says LH)",
+                })
+            }
+        };
+        Ok(JobFile {
+            groove: Groove {
+                lead,
+                starts,
+                hand,
+                z_start: groove.z_start,
+                length: groove.length,
+                profile: groove.profile,
+            },
+            tool,
+            cut,
+            designation,
+        })
     }
 }
 
@@ -524,6 +669,9 @@ impl JobFile {
             ("pitch_diameter", spec.pitch_diameter.is_some()),
             ("outer_diameter", spec.outer_diameter.is_some()),
         ];
+        if let Some(designation) = &self.designation {
+            return self.designated(designation);
+        }
         if spec.standard.is_some() && spec.fit_tolerance.is_some() {
             return Err(JobError::ProfileSpec(
                 "fit_tolerance belongs to points: a standard's form is exact".into(),
@@ -534,7 +682,8 @@ impl JobFile {
                 "give either points or standard, not both".into(),
             )),
             (None, None) => Err(JobError::ProfileSpec(
-                "give points = \"file.csv\" or standard = \"trapezoidal\" | \"acme\" | \"ball-arc\""
+                "give points = \"file.csv\", designation = \"Tr 40x7\" or standard = \
+                 \"trapezoidal\" | \"acme\" | \"ball-arc\""
                     .into(),
             )),
             (Some(file), None) => {
@@ -584,6 +733,42 @@ impl JobFile {
                 ))
             }
         }
+    }
+
+    /// The profile of a standard thread named by its designation: the form from the
+    /// standard's tables, with the job's `root_radius` (which a designation leaves to the
+    /// maker) where it gives one; no other dimension may be given beside it.
+    fn designated(&self, designation: &Designation) -> Result<Profile, JobError> {
+        let spec = &self.groove.profile;
+        let others = [
+            ("points", spec.points.is_some()),
+            ("standard", spec.standard.is_some()),
+            ("section", spec.section.is_some()),
+            ("mirror", spec.mirror.is_some()),
+            ("fit_tolerance", spec.fit_tolerance.is_some()),
+            ("major_diameter", spec.major_diameter.is_some()),
+            ("crest_clearance", spec.crest_clearance.is_some()),
+            ("ball_diameter", spec.ball_diameter.is_some()),
+            ("groove_radius", spec.groove_radius.is_some()),
+            ("pitch_diameter", spec.pitch_diameter.is_some()),
+            ("outer_diameter", spec.outer_diameter.is_some()),
+        ];
+        if let Some((key, _)) = others.iter().find(|(_, set)| *set) {
+            return Err(JobError::ProfileSpec(format!(
+                "{key} does not go with designation: the designation fixes the form (only \
+                 root_radius may be given beside it)"
+            )));
+        }
+        let form = match spec.root_radius {
+            Some(radius) => designation.form.with_root_radius(radius)?,
+            None => designation.form,
+        };
+        let pitch = self.groove.lead / f64::from(self.groove.starts);
+        Ok(Profile::from_axial(
+            form.pieces(pitch)?,
+            self.groove.p(),
+            self.groove.period(),
+        ))
     }
 
     fn standard(&self, kind: StandardKind) -> Result<StandardProfile, JobError> {

@@ -1,11 +1,11 @@
 //! A thread as a drawing names it: `Tr 40x7`, `Tr 40 x 14 P7 LH`, `HA 4.5`, `ZI m2 z1 q10`.
 //!
-//! Each family reads its own designations ([`FAMILIES`]): a family that does not recognise the
+//! Each family reads its own designations (`FAMILIES`): a family that does not recognise the
 //! text says `None` and the next one is asked; one that recognises it either builds the form
 //! from its standard's tables or refuses it naming what is wrong (a size the table does not
 //! have, a pitch that does not belong to the size, a malformed number).
 
-use super::{StandardError, StandardProfile};
+use super::{acme_series, iso2902, metric, StandardError, StandardProfile};
 
 /// What a designation fixes: the form, and the lead, starts and hand where it says them.
 #[derive(Debug, Clone, PartialEq)]
@@ -59,7 +59,23 @@ pub enum DesignationError {
 type Reader = fn(&str) -> Option<Result<Designation, DesignationError>>;
 
 /// The families asked in turn, most specific first.
-const FAMILIES: &[Reader] = &[];
+const FAMILIES: &[Reader] = &[iso2902::read, acme_series::read, metric::read];
+
+impl Designation {
+    /// Whether the designation names an internal thread (a nut): ISO's tolerance classes
+    /// write the internal thread's tolerance position in capitals (ISO 2903: `7H`, ISO 965-1:
+    /// `6H`), the external's in small letters (`7e`, `6g`). (ASME's Acme classes, `2G`, name both; a job says
+    /// which it cuts.)
+    pub fn internal(&self) -> bool {
+        matches!(
+            self.form,
+            StandardProfile::IsoTrapezoidal(_) | StandardProfile::IsoMetric(_)
+        ) && self
+            .class
+            .as_deref()
+            .is_some_and(|class| class.chars().any(|c| c.is_ascii_uppercase()))
+    }
+}
 
 /// Reads a designation, as a drawing writes it.
 pub fn parse(text: &str) -> Result<Designation, DesignationError> {

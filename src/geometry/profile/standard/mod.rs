@@ -14,9 +14,15 @@
 //!   basic root, flanks extended into it).
 //! - [`AcmeGeneralPurpose`]: general purpose Acme thread, ASME B1.5, 29° included angle,
 //!   external thread with the standard's minor-diameter allowance added below the basic root.
+//! - [`StubAcme`]: Stub Acme thread, ASME B1.8, 29° included angle, basic height 0.3·P.
+//! - [`IsoMetric`]: ISO general purpose metric thread, ISO 68-1 / ISO 965-1, 60°, the
+//!   external thread's root rounded to ISO 965-1's `d3`.
 //! - [`BallArc`]: single circular-arc ("ball-arc") ball-screw groove with zero contact angle.
 //!
-//! [`StandardProfile`] wraps the three so a job can carry any of them.
+//! [`StandardProfile`] wraps them so a job can carry any of them; [`designation`] reads them
+//! from a drawing's designation (`Tr 40x7`, `1/2-10 ACME-2G`) with the standards' tables.
+//! [`StandardProfile::internal_pieces`] gives the nut's (internal thread's) section of the
+//! thread forms.
 //!
 //! # Conventions
 //!
@@ -40,15 +46,21 @@
 //!   and the reason, never a panic or a NaN curve.
 
 use glam::DVec2;
+use std::f64::consts::PI;
 
+mod acme_series;
 mod ball_arc;
 pub mod designation;
+mod iso2902;
+mod metric;
+mod reading;
 mod trapezoid;
 
 pub use ball_arc::BallArc;
+pub use metric::IsoMetric;
 pub use trapezoid::{
     asme_b1_5_minor_diameter_allowance, iso2904_crest_clearance, AcmeGeneralPurpose,
-    IsoTrapezoidal, MM_PER_INCH,
+    IsoTrapezoidal, StubAcme, MM_PER_INCH,
 };
 
 /// Why a standard profile's dimensions are rejected.
@@ -183,6 +195,12 @@ pub enum StandardError {
         /// Axial pitch (mm).
         pitch: f64,
     },
+    /// The form has no internal (nut) section here.
+    #[error("{form} has no internal (nut) form in whirl")]
+    NoInternalForm {
+        /// The form.
+        form: &'static str,
+    },
 }
 
 /// Checks that `value` is finite and above zero.
@@ -305,6 +323,10 @@ pub enum StandardProfile {
     IsoTrapezoidal(IsoTrapezoidal),
     /// General purpose Acme.
     Acme(AcmeGeneralPurpose),
+    /// Stub Acme.
+    StubAcme(StubAcme),
+    /// ISO metric (M).
+    IsoMetric(IsoMetric),
     /// Circular-arc ball-screw groove.
     BallArc(BallArc),
 }
@@ -347,6 +369,8 @@ impl StandardProfile {
         match self {
             StandardProfile::IsoTrapezoidal(_) => "ISO 2901:2016 basic profile, ISO 2904:2020 a_c",
             StandardProfile::Acme(_) => "ASME B1.5-1997 general purpose Acme",
+            StandardProfile::StubAcme(_) => "ASME/ANSI B1.8-1988 (R2021) Stub Acme",
+            StandardProfile::IsoMetric(_) => "ISO 68-1:1998 basic profile, ISO 965-1:2013 root",
             StandardProfile::BallArc(_) => "circular-arc ball-screw raceway (catalogue data)",
         }
     }
@@ -362,6 +386,11 @@ impl StandardProfile {
                 Dimension::mm("thread height h3", t.thread_height(pitch)?),
                 Dimension::mm("crest clearance a_c", t.crest_clearance(pitch)?),
                 Dimension::deg("flank angle", 2.0 * IsoTrapezoidal::FLANK_HALF_ANGLE_DEG),
+                Dimension::mm("crest width", crest_width(pitch, 0.5 * pitch, 15.0)),
+                Dimension::mm(
+                    "root width",
+                    root_width(pitch, 0.5 * pitch, t.thread_height(pitch)?, 15.0),
+                ),
                 Dimension::mm("root radius", t.root_radius()),
             ],
             StandardProfile::Acme(a) => vec![
@@ -369,8 +398,52 @@ impl StandardProfile {
                 Dimension::mm("pitch diameter", a.major_diameter() - 0.5 * pitch),
                 Dimension::mm("minor diameter", a.minor_diameter(pitch)?),
                 Dimension::mm("thread height", a.thread_height(pitch)?),
-                Dimension::deg("flank angle", 2.0 * AcmeGeneralPurpose::FLANK_HALF_ANGLE_DEG),
+                Dimension::deg(
+                    "flank angle",
+                    2.0 * AcmeGeneralPurpose::FLANK_HALF_ANGLE_DEG,
+                ),
+                Dimension::mm("crest width", crest_width(pitch, 0.5 * pitch, 14.5)),
+                Dimension::mm(
+                    "root width",
+                    root_width(pitch, 0.5 * pitch, a.thread_height(pitch)?, 14.5),
+                ),
                 Dimension::mm("root radius", a.root_radius()),
+            ],
+            StandardProfile::StubAcme(a) => vec![
+                Dimension::mm("major diameter", a.major_diameter()),
+                Dimension::mm("pitch diameter", a.major_diameter() - a.basic_height(pitch)),
+                Dimension::mm("minor diameter", a.minor_diameter(pitch)?),
+                Dimension::mm("basic thread height h", a.basic_height(pitch)),
+                Dimension::mm("thread height", a.thread_height(pitch)?),
+                Dimension::deg("flank angle", 2.0 * StubAcme::FLANK_HALF_ANGLE_DEG),
+                Dimension::mm(
+                    "crest width",
+                    crest_width(pitch, a.basic_height(pitch), 14.5),
+                ),
+                Dimension::mm(
+                    "root width",
+                    root_width(pitch, a.basic_height(pitch), a.thread_height(pitch)?, 14.5),
+                ),
+                Dimension::mm("root radius", a.root_radius()),
+            ],
+            StandardProfile::IsoMetric(m) => vec![
+                Dimension::mm("major diameter d", m.major_diameter()),
+                Dimension::mm("pitch diameter d2", m.pitch_diameter(pitch)),
+                Dimension::mm(
+                    "minor diameter d3",
+                    m.major_diameter() - 2.0 * m.thread_height(pitch),
+                ),
+                Dimension::mm(
+                    "fundamental triangle height H",
+                    IsoMetric::fundamental_height(pitch),
+                ),
+                Dimension::mm("thread height h3", m.thread_height(pitch)),
+                Dimension::deg("flank angle", 2.0 * IsoMetric::FLANK_HALF_ANGLE_DEG),
+                Dimension::mm(
+                    "crest width",
+                    crest_width(pitch, 0.75 * IsoMetric::fundamental_height(pitch), 30.0),
+                ),
+                Dimension::mm("root radius R", IsoMetric::root_radius(pitch)),
             ],
             StandardProfile::BallArc(b) => vec![
                 Dimension::mm("outer diameter", b.outer_diameter()),
@@ -388,6 +461,8 @@ impl StandardProfile {
         match self {
             StandardProfile::IsoTrapezoidal(t) => t.major_diameter(),
             StandardProfile::Acme(a) => a.major_diameter(),
+            StandardProfile::StubAcme(a) => a.major_diameter(),
+            StandardProfile::IsoMetric(m) => m.major_diameter(),
             StandardProfile::BallArc(b) => b.outer_diameter(),
         }
     }
@@ -397,8 +472,163 @@ impl StandardProfile {
         match self {
             StandardProfile::IsoTrapezoidal(t) => t.pieces(pitch),
             StandardProfile::Acme(a) => a.pieces(pitch),
+            StandardProfile::StubAcme(a) => a.pieces(pitch),
+            StandardProfile::IsoMetric(m) => m.pieces(pitch),
             StandardProfile::BallArc(b) => b.pieces(pitch),
         }
+    }
+
+    /// The same form with root fillets of `radius` (mm), for a job that names the form by its
+    /// designation and the radius its insert leaves. Only the thread forms have root fillets.
+    pub fn with_root_radius(self, radius: f64) -> Result<StandardProfile, StandardError> {
+        Ok(match self {
+            StandardProfile::IsoTrapezoidal(t) => {
+                StandardProfile::IsoTrapezoidal(t.with_root_radius(radius)?)
+            }
+            StandardProfile::Acme(a) => StandardProfile::Acme(a.with_root_radius(radius)?),
+            StandardProfile::StubAcme(a) => StandardProfile::StubAcme(a.with_root_radius(radius)?),
+            StandardProfile::IsoMetric(_) | StandardProfile::BallArc(_) => {
+                return Err(StandardError::Negative {
+                    name: "root radius (this form's root is the standard's own)",
+                    value: radius,
+                })
+            }
+        })
+    }
+
+    /// Radius of the basic pitch line (mm): where the thread and the groove are both `P/2`
+    /// wide. The screw and its nut share it (ISO 2904: `D2 = d2`; ASME B1.5, B1.8: the basic
+    /// pitch diameter is common to both).
+    fn pitch_line_radius(&self, pitch: f64) -> Result<f64, StandardError> {
+        let d = self.outer_diameter();
+        match self {
+            StandardProfile::IsoTrapezoidal(_) | StandardProfile::Acme(_) => {
+                Ok(0.5 * (d - 0.5 * pitch))
+            }
+            StandardProfile::StubAcme(a) => Ok(0.5 * (d - a.basic_height(pitch))),
+            StandardProfile::IsoMetric(m) => Ok(0.5 * m.pitch_diameter(pitch)),
+            StandardProfile::BallArc(_) => Err(StandardError::NoInternalForm {
+                form: "a ball-arc groove",
+            }),
+        }
+    }
+
+    /// The axial section of one pitch of the **internal** thread (the nut) that mates with
+    /// this screw, on the standard's design profile.
+    ///
+    /// Convention for an internal section: one period z ∈ [−P/2, P/2], the groove centred at
+    /// z = 0 running *outward* from the bore, ρ increasing into the groove; the bore (the nut's
+    /// crest, minor diameter D1) at both ends at ρ = D1/2. The three thread standards give the
+    /// nut the screw's clearances mirrored about the common pitch line (ISO 2904:
+    /// `D1 = d − P`, `D4 = d + 2·a_c`, `H4 = h3`, `D2 = d2`; ASME B1.5 and B1.8: nut minor
+    /// diameter `d − 2h`, major diameter `d + allowance`), so the nut's section is the
+    /// screw's reflected in ρ about the pitch line, root fillets included (ISO 2901's `R2`
+    /// applies to the root corners of both).
+    /// The metric thread is the exception: ISO 68-1's nut is the basic profile, its root at
+    /// `D = d`, not the screw's rounded root mirrored ([`IsoMetric::internal_pieces`]).
+    pub fn internal_pieces(&self, pitch: f64) -> Result<Vec<AxialPiece>, StandardError> {
+        if let StandardProfile::IsoMetric(m) = self {
+            return m.internal_pieces(pitch);
+        }
+        let about = self.pitch_line_radius(pitch)?;
+        Ok(self
+            .pieces(pitch)?
+            .into_iter()
+            .map(|piece| mirror_rho(piece, about))
+            .collect())
+    }
+
+    /// The nut's dimensions at this axial pitch (mm), as the standard names them (ISO 2904's
+    /// `D1`, `D2`, `D4`, `H4`).
+    pub fn internal_dimensions(&self, pitch: f64) -> Result<Vec<Dimension>, StandardError> {
+        let about = self.pitch_line_radius(pitch)?;
+        let d = self.outer_diameter();
+        let no_nut = StandardError::NoInternalForm {
+            form: "a ball-arc groove",
+        };
+        let (depth, names) = match self {
+            StandardProfile::IsoTrapezoidal(t) => (
+                t.thread_height(pitch)?,
+                [
+                    "major diameter D4",
+                    "pitch diameter D2",
+                    "minor diameter D1",
+                    "thread height H4",
+                ],
+            ),
+            StandardProfile::Acme(a) => (
+                a.thread_height(pitch)?,
+                [
+                    "major diameter",
+                    "pitch diameter",
+                    "minor diameter",
+                    "thread height",
+                ],
+            ),
+            StandardProfile::StubAcme(a) => (
+                a.thread_height(pitch)?,
+                [
+                    "major diameter",
+                    "pitch diameter",
+                    "minor diameter",
+                    "thread height",
+                ],
+            ),
+            StandardProfile::IsoMetric(m) => {
+                let h1 = 0.625 * IsoMetric::fundamental_height(pitch);
+                return Ok(vec![
+                    Dimension::mm("major diameter D", d),
+                    Dimension::mm("pitch diameter D2", m.pitch_diameter(pitch)),
+                    Dimension::mm("minor diameter D1", d - 2.0 * h1),
+                    Dimension::mm("thread height H1", h1),
+                ]);
+            }
+            StandardProfile::BallArc(_) => return Err(no_nut),
+        };
+        let minor = 2.0 * (2.0 * about - 0.5 * d);
+        Ok(vec![
+            Dimension::mm(names[0], minor + 2.0 * depth),
+            Dimension::mm(names[1], 2.0 * about),
+            Dimension::mm(names[2], minor),
+            Dimension::mm(names[3], depth),
+        ])
+    }
+}
+
+/// Crest flat width (mm) of a symmetric trapezoidal thread of basic height `h` whose flanks
+/// make `half_angle_deg` with the radial: the thread is `P/2` thick `h/2` below the crest, so
+/// `P/2 − h·tan(half angle)` at the crest (ISO 2904's 0.366·P, B1.5's 0.3707·P, B1.8's
+/// 0.4224·P).
+fn crest_width(pitch: f64, h: f64, half_angle_deg: f64) -> f64 {
+    0.5 * pitch - h * half_angle_deg.to_radians().tan()
+}
+
+/// Root flat width (mm) of the same thread cut `depth` deep: the groove is `P/2` wide at the
+/// pitch line and narrows by `2·tan(half angle)` per mm of depth below it.
+fn root_width(pitch: f64, h: f64, depth: f64, half_angle_deg: f64) -> f64 {
+    0.5 * pitch - (2.0 * depth - h) * half_angle_deg.to_radians().tan()
+}
+
+/// A piece reflected in ρ about the cylinder ρ = `about`, keeping its direction of travel in
+/// z: a point's angle θ about an arc's centre becomes π − θ.
+fn mirror_rho(piece: AxialPiece, about: f64) -> AxialPiece {
+    let flip = |p: DVec2| DVec2::new(2.0 * about - p.x, p.y);
+    match piece {
+        AxialPiece::Line { from, to } => AxialPiece::Line {
+            from: flip(from),
+            to: flip(to),
+        },
+        AxialPiece::Arc {
+            centre,
+            radius,
+            start,
+            end,
+        } => AxialPiece::Arc {
+            centre: flip(centre),
+            radius,
+            start: PI - start,
+            end: PI - end,
+        },
     }
 }
 

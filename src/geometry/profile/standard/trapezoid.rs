@@ -1,6 +1,6 @@
-//! The symmetric trapezoidal family: the ISO metric trapezoidal thread (ISO 2901 / ISO 2904)
-//! and the general purpose Acme thread (ASME B1.5), both built on one trapezoidal groove with
-//! optional root fillets. Conventions as in the parent module.
+//! The symmetric trapezoidal family: the ISO metric trapezoidal thread (ISO 2901 / ISO 2904),
+//! the general purpose Acme thread (ASME B1.5) and the Stub Acme thread (ASME B1.8), all built
+//! on one trapezoidal groove with optional root fillets. Conventions as in the parent module.
 
 use super::{non_negative, positive, AxialPiece, StandardError};
 use glam::DVec2;
@@ -20,18 +20,20 @@ const FULL_RADIUS_REL_EPS: f64 = 1e-9;
 
 /// The symmetric trapezoidal groove shared by the ISO trapezoidal and Acme forms.
 ///
-/// Both standards fix the flanks by the same two facts: the thread is `P/2` thick at the pitch
-/// line, which lies `P/4` below the crest (basic height `P/2`, pitch diameter `d − P/2`), and
-/// each flank makes the half-angle `beta` with the radial direction. The groove half-width at
-/// radius `rho` is therefore `P/4 + (rho − (R − P/4))·tan(beta)`, R = d/2, and every flat
+/// The three standards fix the flanks by the same two facts: the thread is `P/2` thick at the
+/// pitch line, which lies half the basic height `h` below the crest (ISO and Acme: `h = P/2`,
+/// pitch diameter `d − P/2`; Stub Acme: `h = 0.3·P`, pitch diameter `d − 0.3·P`), and each
+/// flank makes the half-angle `beta` with the radial direction. The groove half-width at
+/// radius `rho` is therefore `P/4 + (rho − (R − h/2))·tan(beta)`, R = d/2, and every flat
 /// (crest, root) follows from it. The extra depth below the basic root (ISO's `a_c`, Acme's
 /// minor-diameter allowance) extends the flanks, narrowing the root flat by `2·extra·tan(beta)`.
 ///
 /// The root corners are either sharp (`root_radius == 0`) or rounded by fillets tangent to
 /// the flank and the root flat; the crest corners are sharp.
-fn trapezoid_pieces(
+pub(super) fn trapezoid_pieces(
     pitch: f64,
     crest_rho: f64,
+    basic_height: f64,
     depth: f64,
     half_angle: f64,
     root_radius: f64,
@@ -47,8 +49,9 @@ fn trapezoid_pieces(
     let tan_b = half_angle.tan();
     let quarter = 0.25 * pitch;
     // Groove half-widths at the crest and at the root.
-    let crest_half = quarter + quarter * tan_b;
-    let root_half = quarter + (quarter - depth) * tan_b;
+    let half_basic = 0.5 * basic_height;
+    let crest_half = quarter + half_basic * tan_b;
+    let root_half = quarter + (half_basic - depth) * tan_b;
     if root_half <= 0.0 {
         return Err(StandardError::FlanksCross {
             pitch,
@@ -60,7 +63,7 @@ fn trapezoid_pieces(
     // A fillet tangent to a flank and to the root flat turns the tangent by
     // `turn = 90° − beta`; its tangent points lie `r·tan(turn/2)` from the sharp corner. Two
     // fillets share the root flat, so `r·tan(turn/2) <= root_half`. (The flank, at least
-    // `depth/cos(beta) > P/2 > root_half` long for these forms, never limits first.)
+    // `depth/cos(beta) > 0.3·P > P/4 > root_half` long for these forms, never limits first.)
     let turn = FRAC_PI_2 - half_angle;
     let setback_per_radius = (0.5 * turn).tan();
     let max_radius = root_half / setback_per_radius;
@@ -272,6 +275,12 @@ impl IsoTrapezoidal {
         Ok(self.major_diameter - 2.0 * self.thread_height(pitch)?)
     }
 
+    /// The same thread with root fillets of `radius` (mm): a designation fixes the form but
+    /// not the radius, which ISO 2901 leaves to the maker up to `R2max`.
+    pub fn with_root_radius(self, radius: f64) -> Result<Self, StandardError> {
+        Self::new(self.major_diameter, Some(radius), self.crest_clearance)
+    }
+
     /// Largest root radius ISO 2901 allows on the design profile, `R2max = a_c` (mm).
     pub fn iso_max_root_radius(&self, pitch: f64) -> Result<f64, StandardError> {
         self.crest_clearance(pitch)
@@ -283,6 +292,7 @@ impl IsoTrapezoidal {
         trapezoid_pieces(
             pitch,
             0.5 * self.major_diameter,
+            0.5 * pitch,
             depth,
             Self::FLANK_HALF_ANGLE_DEG.to_radians(),
             self.root_radius,
@@ -357,6 +367,12 @@ impl AcmeGeneralPurpose {
         self.root_radius
     }
 
+    /// The same thread with root fillets of `radius` (mm): a designation fixes the form but
+    /// not the radius.
+    pub fn with_root_radius(self, radius: f64) -> Result<Self, StandardError> {
+        Self::new(self.major_diameter, Some(radius))
+    }
+
     /// Total thread depth of the screw, `0.5·P + allowance/2` (mm).
     pub fn thread_height(&self, pitch: f64) -> Result<f64, StandardError> {
         Ok(0.5 * pitch + 0.5 * asme_b1_5_minor_diameter_allowance(pitch)?)
@@ -373,6 +389,86 @@ impl AcmeGeneralPurpose {
         trapezoid_pieces(
             pitch,
             0.5 * self.major_diameter,
+            0.5 * pitch,
+            depth,
+            Self::FLANK_HALF_ANGLE_DEG.to_radians(),
+            self.root_radius,
+        )
+    }
+}
+
+/// Stub Acme thread (ASME/ANSI B1.8-1988, reaffirmed 2021), external thread, all dimensions in
+/// mm: the Acme thread's 29° flanks on a shallow basic height for coarse pitches where the
+/// wall is thin.
+///
+/// Geometry (B1.8 basic dimensions): flank half-angle 14.5°, basic height `h = 0.3·P`, basic
+/// thickness `P/2` at the pitch diameter `d − 0.3·P`, basic minor diameter `d − 0.6·P`, basic
+/// flat at crest and root `P/2 − 2·0.15·P·tan 14.5° = 0.4224·P` (the standard's column
+/// "basic width of flat, 0.4224P"). B1.8 establishes one class, 2G, whose fit "corresponds to
+/// the Class 2G General Purpose Acme thread": the screw's minor diameter takes the same
+/// minor-diameter allowance as B1.5 ([`asme_b1_5_minor_diameter_allowance`]), so the total
+/// depth is `0.3·P + allowance/2` and the root flat `0.4224·P − allowance·tan 14.5°`. Root
+/// fillets and crest corners as [`AcmeGeneralPurpose`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StubAcme {
+    major_diameter: f64,
+    root_radius: f64,
+}
+
+impl StubAcme {
+    /// Flank half-angle: 14.5°, i.e. 29° included (as Acme).
+    pub const FLANK_HALF_ANGLE_DEG: f64 = 14.5;
+    /// Basic thread height as a share of the pitch: `h = 0.3·P`.
+    pub const BASIC_HEIGHT_PER_PITCH: f64 = 0.3;
+
+    /// A Stub Acme screw of major diameter `d` (mm) with an optional root fillet radius (mm,
+    /// default 0: sharp root corners).
+    pub fn new(major_diameter: f64, root_radius: Option<f64>) -> Result<Self, StandardError> {
+        let major_diameter = positive("major diameter d", major_diameter)?;
+        let root_radius = non_negative("root radius", root_radius.unwrap_or(0.0))?;
+        Ok(Self {
+            major_diameter,
+            root_radius,
+        })
+    }
+
+    /// The same thread with root fillets of `radius` (mm).
+    pub fn with_root_radius(self, radius: f64) -> Result<Self, StandardError> {
+        Self::new(self.major_diameter, Some(radius))
+    }
+
+    /// Major diameter d (mm).
+    pub fn major_diameter(&self) -> f64 {
+        self.major_diameter
+    }
+
+    /// Root fillet radius (mm); 0 means sharp root corners.
+    pub fn root_radius(&self) -> f64 {
+        self.root_radius
+    }
+
+    /// Basic thread height `h = 0.3·P` (mm).
+    pub fn basic_height(&self, pitch: f64) -> f64 {
+        Self::BASIC_HEIGHT_PER_PITCH * pitch
+    }
+
+    /// Total thread depth of the screw, `0.3·P + allowance/2` (mm).
+    pub fn thread_height(&self, pitch: f64) -> Result<f64, StandardError> {
+        Ok(self.basic_height(pitch) + 0.5 * asme_b1_5_minor_diameter_allowance(pitch)?)
+    }
+
+    /// Minor diameter of the screw, `d − 0.6·P − allowance` (mm).
+    pub fn minor_diameter(&self, pitch: f64) -> Result<f64, StandardError> {
+        Ok(self.major_diameter - 2.0 * self.thread_height(pitch)?)
+    }
+
+    /// The axial section of one pitch (see the module documentation for the conventions).
+    pub fn pieces(&self, pitch: f64) -> Result<Vec<AxialPiece>, StandardError> {
+        let depth = self.thread_height(pitch)?;
+        trapezoid_pieces(
+            pitch,
+            0.5 * self.major_diameter,
+            self.basic_height(pitch),
             depth,
             Self::FLANK_HALF_ANGLE_DEG.to_radians(),
             self.root_radius,

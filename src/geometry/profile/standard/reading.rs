@@ -1,0 +1,59 @@
+//! The small grammar the designation readers share: numbers as drawings write them, the
+//! left-hand mark, and a refusal's words.
+
+use super::designation::DesignationError;
+
+/// A refusal of `text`, saying what is wrong in the standard's terms.
+pub(super) fn refuse(text: &str, why: impl Into<String>) -> DesignationError {
+    DesignationError::Refused {
+        text: text.to_string(),
+        why: why.into(),
+    }
+}
+
+/// A number as a drawing writes it: `40`, `1.5`, `.500`, or with ISO's decimal comma `1,5`.
+/// `what` names it in the refusal.
+pub(super) fn number(word: &str, what: &str) -> Result<f64, String> {
+    let word = word.trim();
+    match word.replace(',', ".").parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("the {what} `{word}` is not a number above zero")),
+    }
+}
+
+/// Takes the left-hand mark `LH` off the end of `body`: `(rest, true)` when it is there once,
+/// a refusal when it is given twice or stands anywhere but at the end.
+pub(super) fn left_hand(body: &str) -> Result<(&str, bool), String> {
+    match body.matches("LH").count() {
+        0 => Ok((body, false)),
+        1 => body
+            .strip_suffix("LH")
+            .map(|rest| (rest, true))
+            .ok_or_else(|| "LH (left hand) must follow the pitch".to_string()),
+        _ => Err("LH (left hand) is given twice".to_string()),
+    }
+}
+
+/// The number of starts of a thread of `lead` and `pitch`: the lead must be a whole number of
+/// pitches (a thread of n starts advances n pitches per turn).
+pub(super) fn starts(lead: f64, pitch: f64, unit: &str) -> Result<u32, String> {
+    let n = lead / pitch;
+    let whole = n.round();
+    if whole >= 1.0 && (n - whole).abs() <= 1e-9 * n && whole <= f64::from(u32::MAX) {
+        Ok(whole as u32)
+    } else {
+        Err(format!(
+            "the lead {lead} {unit} is not a whole number of pitches {pitch} {unit} (the lead \
+             of an n-start thread is n pitches)"
+        ))
+    }
+}
+
+/// Numbers for a message, separated by commas.
+pub(super) fn list(values: impl IntoIterator<Item = f64>) -> String {
+    values
+        .into_iter()
+        .map(|v| v.to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
