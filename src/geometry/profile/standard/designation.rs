@@ -59,7 +59,7 @@ pub enum DesignationError {
 type Reader = fn(&str) -> Option<Result<Designation, DesignationError>>;
 
 /// The families asked in turn, most specific first.
-const FAMILIES: &[Reader] = &[];
+const FAMILIES: &[Reader] = &[super::worm::read_designation];
 
 /// Reads a designation, as a drawing writes it.
 pub fn parse(text: &str) -> Result<Designation, DesignationError> {
