@@ -16,6 +16,8 @@ use std::f64::consts::TAU;
 use std::path::{Path, PathBuf};
 
 #[cfg(test)]
+mod forms_tests;
+#[cfg(test)]
 mod tests;
 
 /// A job, read and checked: the job file's values, and the groove's profile built from its

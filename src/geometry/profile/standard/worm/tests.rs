@@ -251,7 +251,12 @@ fn curved_flanks_join_their_fillets_and_arcs_without_a_corner() {
             .collect();
         assert_eq!(kinks, 2, "{flank:?} {turns:?}");
         let p = w.lead() / TAU;
+        let count = pieces.len();
         let profile = Profile::from_axial(pieces, p, TAU);
+        // The profile adds a corner at each crest edge and nowhere else: its pieces are the
+        // axial ones and two corners (a corner between tangent arcs would make the ring
+        // roll on the spot mid-flank).
+        assert_eq!(profile.breaks().len(), count + 2 + 1, "{flank:?}");
         assert!(profile.concave_stretches(p, 0.35).is_empty(), "{flank:?}");
     }
 }
