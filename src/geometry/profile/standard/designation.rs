@@ -1,6 +1,6 @@
 //! A thread as a drawing names it: `Tr 40x7`, `Tr 40 x 14 P7 LH`, `HA 4.5`, `ZI m2 z1 q10`.
 //!
-//! Each family reads its own designations ([`FAMILIES`]): a family that does not recognise the
+//! Each family reads its own designations (`FAMILIES`): a family that does not recognise the
 //! text says `None` and the next one is asked; one that recognises it either builds the form
 //! from its standard's tables or refuses it naming what is wrong (a size the table does not
 //! have, a pitch that does not belong to the size, a malformed number).

@@ -22,7 +22,7 @@
 //!   radius `ρ` lies at `p·inv α_ρ` from where it crosses the reference cylinder,
 //!   `cos α_ρ = r_b/ρ`, `inv x = tan x − x`, in closed form.
 //!
-//! The curved sections of ZN and ZI are fitted by tangent-continuous arcs ([`arc_fit`]) within
+//! The curved sections of ZN and ZI are fitted by tangent-continuous arcs (`standard/arc_fit.rs`) within
 //! [`FLANK_TOLERANCE`]. The root flat joins the flanks with fillets of radius `ρ_f` tangent to
 //! both (the standard leaves the root's form to the tool; whirl's default is `0.2·m`), found on
 //! the exact flank.
