@@ -3,6 +3,7 @@
 //! the groove everywhere else; the circular arc is the ball-arc groove.
 
 use super::*;
+use crate::geometry::profile::standard::StandardProfile;
 use std::f64::consts::TAU;
 
 /// A 1/8" ball (3.175 mm) on a 16 mm ball-centre diameter in a 15.5 mm shaft, conformity
@@ -271,4 +272,17 @@ fn every_impossible_raceway_is_refused_naming_why() {
         screw.pieces(screw.groove_width()),
         Err(StandardError::GroovesOverlap { .. })
     ));
+}
+
+#[test]
+fn whirl_profile_lists_the_raceways_ball_and_contact_angle() {
+    let form = StandardProfile::BallScrew(gothic(Some(1.2)));
+    let rows = form.dimensions(5.0).unwrap();
+    let value = |name: &str| rows.iter().find(|d| d.name == name).unwrap().value;
+    assert_eq!(value("ball diameter D_w"), 3.175);
+    assert!((value("raceway radius r_g") - 0.55 * 3.175).abs() < 1e-12);
+    assert!((value("contact angle") - 45.0).abs() < 1e-12);
+    assert_eq!(value("relief radius r_r"), 1.2);
+    assert!(form.source().contains("gothic-arch"));
+    assert_eq!(form.outer_diameter(), 15.5);
 }

@@ -362,3 +362,21 @@ fn a_malformed_worm_designation_is_refused_naming_the_word() {
         })
     ));
 }
+
+#[test]
+fn whirl_profile_lists_the_worms_din_3975_dimensions() {
+    let form = StandardProfile::Worm(worm(WormFlank::ZI));
+    let rows = form.dimensions(PI * 2.0).unwrap();
+    let value = |name: &str| {
+        rows.iter()
+            .find(|d| d.name == name)
+            .unwrap_or_else(|| panic!("no {name}"))
+            .value
+    };
+    assert_eq!(value("reference diameter d1"), 20.0);
+    assert_eq!(value("tip diameter d_a1"), 24.0);
+    assert!((value("root diameter d_f1") - 15.2).abs() < 1e-12);
+    assert!((value("axial tooth thickness s_x1") - 0.5 * PI * 2.0).abs() < 1e-12);
+    assert!(form.source().contains("DIN 3975-1"));
+    assert_eq!(form.outer_diameter(), 24.0);
+}
