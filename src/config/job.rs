@@ -8,13 +8,16 @@ use crate::geometry::linkage::{Ring, Whirling};
 use crate::geometry::profile::points::{self, PointsError, Section};
 use crate::geometry::profile::standard::designation::{self, Designation, DesignationError};
 use crate::geometry::profile::standard::{
-    AcmeGeneralPurpose, BallArc, IsoTrapezoidal, StandardError, StandardProfile,
+    AcmeGeneralPurpose, BallArc, BallScrew, IsoTrapezoidal, Raceway, StandardError,
+    StandardProfile, Worm, WormFlank,
 };
 use crate::geometry::profile::Profile;
 use serde::Deserialize;
 use std::f64::consts::TAU;
 use std::path::{Path, PathBuf};
 
+#[cfg(test)]
+mod forms_tests;
 #[cfg(test)]
 mod tests;
 
@@ -113,6 +116,31 @@ pub enum StandardKind {
     Acme,
     /// Circular-arc ball-screw groove.
     BallArc,
+    /// Ball screw raceway, gothic arch or circular arc (`raceway`).
+    BallScrew,
+    /// Cylindrical worm, DIN 3975-1 flank form ZA, ZN or ZI (`flank`).
+    Worm,
+}
+
+/// `raceway` of a ball screw.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RacewaySpec {
+    /// Two arcs, the ball touching each at the contact angle.
+    GothicArch,
+    /// One arc.
+    CircularArc,
+}
+
+/// `flank` of a worm: DIN 3975-1's letters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+pub enum WormFlankSpec {
+    /// Straight in the axial section.
+    ZA,
+    /// Straight in the normal section.
+    ZN,
+    /// Involute helicoid.
+    ZI,
 }
 
 /// `[groove.profile]`: either sampled points or a standard with its dimensions.
@@ -150,6 +178,24 @@ pub struct ProfileSpec {
     pub pitch_diameter: Option<f64>,
     /// Ball-arc: shaft outer diameter, mm.
     pub outer_diameter: Option<f64>,
+    /// Ball screw: `"gothic-arch"` or `"circular-arc"`.
+    pub raceway: Option<RacewaySpec>,
+    /// Ball screw: conformity r_g / D_w (0.52 to 0.56 in the catalogues).
+    pub conformity: Option<f64>,
+    /// Ball screw, gothic arch: contact angle, degrees (default 45).
+    pub contact_angle_deg: Option<f64>,
+    /// Ball screw, gothic arch: radius of the relief arc rounding the bottom, mm.
+    pub relief_radius: Option<f64>,
+    /// Worm: flank form `"ZA"`, `"ZN"` or `"ZI"`.
+    pub flank: Option<WormFlankSpec>,
+    /// Worm: axial module m, mm.
+    pub module: Option<f64>,
+    /// Worm: diameter quotient q = d1 / m.
+    pub diameter_quotient: Option<f64>,
+    /// Worm: pressure angle α, degrees (default 20), in the section the flank form names.
+    pub pressure_angle_deg: Option<f64>,
+    /// Worm: bottom clearance factor c* (default 0.2).
+    pub bottom_clearance: Option<f64>,
 }
 
 /// `[tool]`.
@@ -668,6 +714,15 @@ impl JobFile {
             ("groove_radius", spec.groove_radius.is_some()),
             ("pitch_diameter", spec.pitch_diameter.is_some()),
             ("outer_diameter", spec.outer_diameter.is_some()),
+            ("raceway", spec.raceway.is_some()),
+            ("conformity", spec.conformity.is_some()),
+            ("contact_angle_deg", spec.contact_angle_deg.is_some()),
+            ("relief_radius", spec.relief_radius.is_some()),
+            ("flank", spec.flank.is_some()),
+            ("module", spec.module.is_some()),
+            ("diameter_quotient", spec.diameter_quotient.is_some()),
+            ("pressure_angle_deg", spec.pressure_angle_deg.is_some()),
+            ("bottom_clearance", spec.bottom_clearance.is_some()),
         ];
         if let Some(designation) = &self.designation {
             return self.designated(designation);
@@ -683,7 +738,7 @@ impl JobFile {
             )),
             (None, None) => Err(JobError::ProfileSpec(
                 "give points = \"file.csv\", designation = \"Tr 40x7\" or standard = \
-                 \"trapezoidal\" | \"acme\" | \"ball-arc\""
+                 \"trapezoidal\" | \"acme\" | \"ball-arc\" | \"ball-screw\" | \"worm\""
                     .into(),
             )),
             (Some(file), None) => {
@@ -785,7 +840,88 @@ impl JobFile {
                 Ok(())
             }
         };
+        // The ball screw's and the worm's keys, refused for every form that is not theirs.
+        let ball_screw_keys = [
+            ("raceway", spec.raceway.is_some()),
+            ("conformity", spec.conformity.is_some()),
+            ("contact_angle_deg", spec.contact_angle_deg.is_some()),
+            ("relief_radius", spec.relief_radius.is_some()),
+        ];
+        let worm_keys = [
+            ("flank", spec.flank.is_some()),
+            ("module", spec.module.is_some()),
+            ("diameter_quotient", spec.diameter_quotient.is_some()),
+            ("pressure_angle_deg", spec.pressure_angle_deg.is_some()),
+            ("bottom_clearance", spec.bottom_clearance.is_some()),
+        ];
+        if kind != StandardKind::BallScrew {
+            for (key, set) in ball_screw_keys {
+                refuse(key, set)?;
+            }
+        }
+        if kind != StandardKind::Worm {
+            for (key, set) in worm_keys {
+                refuse(key, set)?;
+            }
+        }
         Ok(match kind {
+            StandardKind::BallScrew => {
+                refuse("major_diameter", spec.major_diameter.is_some())?;
+                refuse("root_radius", spec.root_radius.is_some())?;
+                refuse("crest_clearance", spec.crest_clearance.is_some())?;
+                refuse("groove_radius", spec.groove_radius.is_some())?;
+                let raceway = match spec.raceway {
+                    Some(RacewaySpec::GothicArch) => Raceway::GothicArch,
+                    Some(RacewaySpec::CircularArc) => Raceway::CircularArc,
+                    None => {
+                        return Err(JobError::ProfileSpec(
+                            "standard = \"ball-screw\" needs raceway = \"gothic-arch\" | \
+                             \"circular-arc\""
+                                .into(),
+                        ))
+                    }
+                };
+                StandardProfile::BallScrew(BallScrew::new(
+                    raceway,
+                    need("ball_diameter", spec.ball_diameter)?,
+                    need("conformity", spec.conformity)?,
+                    spec.contact_angle_deg,
+                    need("pitch_diameter", spec.pitch_diameter)?,
+                    need("outer_diameter", spec.outer_diameter)?,
+                    spec.relief_radius,
+                )?)
+            }
+            StandardKind::Worm => {
+                for (key, set) in [
+                    ("major_diameter", spec.major_diameter.is_some()),
+                    ("crest_clearance", spec.crest_clearance.is_some()),
+                    ("ball_diameter", spec.ball_diameter.is_some()),
+                    ("groove_radius", spec.groove_radius.is_some()),
+                    ("pitch_diameter", spec.pitch_diameter.is_some()),
+                    ("outer_diameter", spec.outer_diameter.is_some()),
+                ] {
+                    refuse(key, set)?;
+                }
+                let flank = match spec.flank {
+                    Some(WormFlankSpec::ZA) => WormFlank::ZA,
+                    Some(WormFlankSpec::ZN) => WormFlank::ZN,
+                    Some(WormFlankSpec::ZI) => WormFlank::ZI,
+                    None => {
+                        return Err(JobError::ProfileSpec(
+                            "standard = \"worm\" needs flank = \"ZA\" | \"ZN\" | \"ZI\"".into(),
+                        ))
+                    }
+                };
+                StandardProfile::Worm(Worm::new(
+                    flank,
+                    need("module", spec.module)?,
+                    self.groove.starts,
+                    need("diameter_quotient", spec.diameter_quotient)?,
+                    spec.pressure_angle_deg,
+                    spec.bottom_clearance,
+                    spec.root_radius,
+                )?)
+            }
             StandardKind::Trapezoidal | StandardKind::Acme => {
                 refuse("ball_diameter", spec.ball_diameter.is_some())?;
                 refuse("groove_radius", spec.groove_radius.is_some())?;

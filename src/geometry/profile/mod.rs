@@ -221,7 +221,9 @@ impl Profile {
             if i + 1 == n {
                 d_in = DVec2::from_angle(period).rotate(d_in);
             }
-            let turn = d_out.angle_to(d_in);
+            // atan2, not glam's `angle_to`: its arccosine reads a zero turn as up to 1.5e-8 rad,
+            // which put corners between the tangent arcs of a curved flank (standard::worm).
+            let turn = d_out.perp_dot(d_in).atan2(d_out.dot(d_in));
             if turn > 1e-9 {
                 let from = d_out.to_angle();
                 pieces.push(Piece::Corner {
@@ -340,7 +342,7 @@ impl Profile {
             }
             let (end, d_out, _) = piece.eval(piece.length());
             let (_, d_in, _) = next.eval(0.0);
-            let turn = d_out.angle_to(d_in);
+            let turn = d_out.perp_dot(d_in).atan2(d_out.dot(d_in));
             if turn < -1e-9 {
                 let n_out = self.normal3(end, d_out, p);
                 let n_in = self.normal3(end, d_in, p);

@@ -59,7 +59,12 @@ pub enum DesignationError {
 type Reader = fn(&str) -> Option<Result<Designation, DesignationError>>;
 
 /// The families asked in turn, most specific first.
-const FAMILIES: &[Reader] = &[iso2902::read, acme_series::read, metric::read];
+const FAMILIES: &[Reader] = &[
+    iso2902::read,
+    acme_series::read,
+    metric::read,
+    super::worm::read_designation,
+];
 
 impl Designation {
     /// Whether the designation names an internal thread (a nut): ISO's tolerance classes

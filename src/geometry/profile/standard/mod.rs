@@ -49,19 +49,24 @@ use glam::DVec2;
 use std::f64::consts::PI;
 
 mod acme_series;
+mod arc_fit;
 mod ball_arc;
+pub mod ball_screw;
 pub mod designation;
 mod iso2902;
 mod metric;
 mod reading;
 mod trapezoid;
+pub mod worm;
 
 pub use ball_arc::BallArc;
 pub use metric::IsoMetric;
+pub use ball_screw::{BallScrew, Raceway};
 pub use trapezoid::{
     asme_b1_5_minor_diameter_allowance, iso2904_crest_clearance, AcmeGeneralPurpose,
     IsoTrapezoidal, StubAcme, MM_PER_INCH,
 };
+pub use worm::{Worm, WormFlank};
 
 /// Why a standard profile's dimensions are rejected.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -201,6 +206,76 @@ pub enum StandardError {
         /// The form.
         form: &'static str,
     },
+    /// A dimension given for a ball-screw raceway that does not have it (the circular arc
+    /// has no contact angle other than 0 and no relief).
+    #[error("{name} = {value} belongs to the gothic arch, not to the circular-arc raceway")]
+    NotForRaceway {
+        /// Which dimension.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// The gothic arch's contact angle is not between 0° and 90°.
+    #[error(
+        "contact angle {degrees}° must lie above 0° and below 90° (the catalogues' gothic arch \
+         has 45°)"
+    )]
+    ContactAngleOutOfRange {
+        /// The angle given (degrees).
+        degrees: f64,
+    },
+    /// The ball would touch the gothic arch at or above the shaft's outer diameter.
+    #[error(
+        "the ball touches the flank on diameter {contact} mm, not below the outer diameter \
+         {outer} mm: the contact point would not be on the shaft"
+    )]
+    ContactAboveOuterDiameter {
+        /// Diameter of the contact point (mm).
+        contact: f64,
+        /// Outer diameter d (mm).
+        outer: f64,
+    },
+    /// The gothic arch's relief reaches the ball's contact points.
+    #[error(
+        "relief radius {relief} mm reaches the contact points: it must be below the ball's \
+         radius {max} mm"
+    )]
+    ReliefReachesContact {
+        /// The relief radius given (mm).
+        relief: f64,
+        /// The largest below which it must stay (mm).
+        max: f64,
+    },
+    /// A worm's pressure angle is outside the range the flank forms are built for.
+    #[error("pressure angle {degrees}° must lie above 0° and below 45° (DIN 3975-1: 20°)")]
+    PressureAngleOutOfRange {
+        /// The angle given (degrees).
+        degrees: f64,
+    },
+    /// A ZI worm's root lies inside its base cylinder, where no involute is.
+    #[error(
+        "root diameter {root} mm lies inside the involute's base cylinder, {base} mm: a ZI \
+         flank does not reach the root (choose a smaller pressure angle or a larger q)"
+    )]
+    RootInsideBaseCylinder {
+        /// Root diameter d_f1 (mm).
+        root: f64,
+        /// Base diameter d_b (mm).
+        base: f64,
+    },
+    /// A worm's groove is given a pitch other than its axial pitch π·m.
+    #[error(
+        "axial pitch {pitch} mm is not the module's: a worm of module {module} mm has axial \
+         pitch π·m = {axial_pitch} mm (lead = π·m·starts)"
+    )]
+    PitchNotModule {
+        /// The axial pitch given (lead / starts, mm).
+        pitch: f64,
+        /// Module m (mm).
+        module: f64,
+        /// π·m (mm).
+        axial_pitch: f64,
+    },
 }
 
 /// Checks that `value` is finite and above zero.
@@ -329,6 +404,10 @@ pub enum StandardProfile {
     IsoMetric(IsoMetric),
     /// Circular-arc ball-screw groove.
     BallArc(BallArc),
+    /// Ball screw raceway: gothic arch or circular arc.
+    BallScrew(BallScrew),
+    /// Cylindrical worm: ZA, ZN or ZI.
+    Worm(Worm),
 }
 
 /// One dimension of a standard form as `whirl profile` and the console's job page list it:
@@ -339,7 +418,7 @@ pub struct Dimension {
     pub name: &'static str,
     /// Its value in `unit`.
     pub value: f64,
-    /// `"mm"` or `"°"`.
+    /// `"mm"`, `"°"`, or empty for a ratio or a count.
     pub unit: &'static str,
 }
 
@@ -372,6 +451,15 @@ impl StandardProfile {
             StandardProfile::StubAcme(_) => "ASME/ANSI B1.8-1988 (R2021) Stub Acme",
             StandardProfile::IsoMetric(_) => "ISO 68-1:1998 basic profile, ISO 965-1:2013 root",
             StandardProfile::BallArc(_) => "circular-arc ball-screw raceway (catalogue data)",
+            StandardProfile::BallScrew(b) => match b.raceway() {
+                Raceway::GothicArch => {
+                    "ball screw, gothic-arch raceway (ISO 3408-1; THK, HIWIN, NSK catalogues)"
+                }
+                Raceway::CircularArc => {
+                    "ball screw, circular-arc raceway (ISO 3408-1; THK, HIWIN, NSK catalogues)"
+                }
+            },
+            StandardProfile::Worm(_) => "cylindrical worm, DIN 3975-1:2017 / ISO 10828:2015",
         }
     }
 
@@ -453,6 +541,47 @@ impl StandardProfile {
                 Dimension::mm("groove depth", b.depth()),
                 Dimension::mm("groove width", b.groove_width()),
             ],
+            StandardProfile::BallScrew(b) => {
+                let mut rows = vec![
+                    Dimension::mm("outer diameter d", b.outer_diameter()),
+                    Dimension::mm("ball diameter D_w", b.ball_diameter()),
+                    Dimension::mm("ball-centre diameter d_0", b.pitch_circle_diameter()),
+                    Dimension::mm("raceway radius r_g", b.groove_radius()),
+                    Dimension {
+                        name: "conformity r_g/D_w",
+                        value: b.conformity(),
+                        unit: "",
+                    },
+                    Dimension::deg("contact angle", b.contact_angle().to_degrees()),
+                    Dimension::mm("groove depth", b.depth()),
+                    Dimension::mm("groove width", b.groove_width()),
+                ];
+                if let Some(r) = b.relief_radius() {
+                    rows.push(Dimension::mm("relief radius r_r", r));
+                }
+                rows
+            }
+            StandardProfile::Worm(w) => vec![
+                Dimension::mm("axial module m", w.module()),
+                Dimension {
+                    name: "starts z1",
+                    value: f64::from(w.starts()),
+                    unit: "",
+                },
+                Dimension::mm("axial pitch p_x", w.axial_pitch()),
+                Dimension::mm("lead p_z", w.lead()),
+                Dimension::mm("reference diameter d1", w.reference_diameter()),
+                Dimension::mm("tip diameter d_a1", w.tip_diameter()),
+                Dimension::mm("root diameter d_f1", w.root_diameter()),
+                Dimension::deg("lead angle γ", w.lead_angle().to_degrees()),
+                Dimension::deg("pressure angle α", w.pressure_angle().to_degrees()),
+                Dimension::deg(
+                    "axial pressure angle α_x",
+                    w.axial_pressure_angle().to_degrees(),
+                ),
+                Dimension::mm("axial tooth thickness s_x1", 0.5 * w.axial_pitch()),
+                Dimension::mm("root radius ρ_f", w.root_radius()),
+            ],
         })
     }
 
@@ -464,6 +593,8 @@ impl StandardProfile {
             StandardProfile::StubAcme(a) => a.major_diameter(),
             StandardProfile::IsoMetric(m) => m.major_diameter(),
             StandardProfile::BallArc(b) => b.outer_diameter(),
+            StandardProfile::BallScrew(b) => b.outer_diameter(),
+            StandardProfile::Worm(w) => w.tip_diameter(),
         }
     }
 
@@ -475,6 +606,8 @@ impl StandardProfile {
             StandardProfile::StubAcme(a) => a.pieces(pitch),
             StandardProfile::IsoMetric(m) => m.pieces(pitch),
             StandardProfile::BallArc(b) => b.pieces(pitch),
+            StandardProfile::BallScrew(b) => b.pieces(pitch),
+            StandardProfile::Worm(w) => w.pieces(pitch),
         }
     }
 
@@ -487,7 +620,18 @@ impl StandardProfile {
             }
             StandardProfile::Acme(a) => StandardProfile::Acme(a.with_root_radius(radius)?),
             StandardProfile::StubAcme(a) => StandardProfile::StubAcme(a.with_root_radius(radius)?),
-            StandardProfile::IsoMetric(_) | StandardProfile::BallArc(_) => {
+            StandardProfile::Worm(w) => StandardProfile::Worm(Worm::new(
+                w.flank(),
+                w.module(),
+                w.starts(),
+                w.quotient(),
+                Some(w.pressure_angle().to_degrees()),
+                Some(w.bottom_clearance()),
+                Some(radius),
+            )?),
+            StandardProfile::IsoMetric(_)
+            | StandardProfile::BallArc(_)
+            | StandardProfile::BallScrew(_) => {
                 return Err(StandardError::Negative {
                     name: "root radius (this form's root is the standard's own)",
                     value: radius,
@@ -507,8 +651,13 @@ impl StandardProfile {
             }
             StandardProfile::StubAcme(a) => Ok(0.5 * (d - a.basic_height(pitch))),
             StandardProfile::IsoMetric(m) => Ok(0.5 * m.pitch_diameter(pitch)),
-            StandardProfile::BallArc(_) => Err(StandardError::NoInternalForm {
-                form: "a ball-arc groove",
+            StandardProfile::BallArc(_) | StandardProfile::BallScrew(_) => {
+                Err(StandardError::NoInternalForm {
+                    form: "a ball-screw raceway",
+                })
+            }
+            StandardProfile::Worm(_) => Err(StandardError::NoInternalForm {
+                form: "a worm (its mate is a worm wheel)",
             }),
         }
     }
@@ -543,9 +692,6 @@ impl StandardProfile {
     pub fn internal_dimensions(&self, pitch: f64) -> Result<Vec<Dimension>, StandardError> {
         let about = self.pitch_line_radius(pitch)?;
         let d = self.outer_diameter();
-        let no_nut = StandardError::NoInternalForm {
-            form: "a ball-arc groove",
-        };
         let (depth, names) = match self {
             StandardProfile::IsoTrapezoidal(t) => (
                 t.thread_height(pitch)?,
@@ -583,7 +729,9 @@ impl StandardProfile {
                     Dimension::mm("thread height H1", h1),
                 ]);
             }
-            StandardProfile::BallArc(_) => return Err(no_nut),
+            StandardProfile::BallArc(_)
+            | StandardProfile::BallScrew(_)
+            | StandardProfile::Worm(_) => unreachable!("pitch_line_radius refused it"),
         };
         let minor = 2.0 * (2.0 * about - 0.5 * d);
         Ok(vec![
