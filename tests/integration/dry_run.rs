@@ -254,8 +254,12 @@ fn every_example_dry_runs_within_delta_on_can_drives_over_slcan() {
                     // program does: the one `whirl dry-run` planned and sent, its nodes
                     // measured by the engine.
                     let job = whirl::config::job::Job::load(job).unwrap();
-                    let planned = whirl::judge::refine::plan(&job, profile).unwrap().program;
-                    let end = planned
+                    // The program as written (its decimals), which is what was sent.
+                    let planned = whirl::judge::refine::plan(&job, profile).unwrap();
+                    let written = whirl::transport::Posted::read("p", &planned.text, profile)
+                        .unwrap()
+                        .program;
+                    let end = written
                         .steps(Position::known(0.0, 0.0, 0.0))
                         .last()
                         .unwrap()
