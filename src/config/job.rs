@@ -11,7 +11,7 @@ use crate::geometry::profile::standard::{
     AcmeGeneralPurpose, BallArc, BallScrew, IsoTrapezoidal, Raceway, StandardError,
     StandardProfile, Worm, WormFlank,
 };
-use crate::geometry::profile::Profile;
+use crate::geometry::profile::{Material, Profile};
 use serde::Deserialize;
 use std::f64::consts::TAU;
 use std::path::{Path, PathBuf};
@@ -66,6 +66,7 @@ struct GrooveFile {
     hand: Option<Hand>,
     z_start: f64,
     length: f64,
+    internal: Option<bool>,
     profile: ProfileSpec,
 }
 
@@ -92,6 +93,9 @@ pub struct Groove {
     pub z_start: f64,
     /// … to `z_start + length`, mm.
     pub length: f64,
+    /// An internal groove (a nut's thread, the material outside): `true`; absent or `false`,
+    /// an external one (a screw). A nut is cut by a bore head (`tool.whirling = "bore"`).
+    pub internal: Option<bool>,
     /// Its cross-section.
     pub profile: ProfileSpec,
 }
@@ -202,7 +206,8 @@ pub struct ProfileSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Tool {
-    /// Internal (ring round the work) or external (disk beside it).
+    /// Internal (ring round the work), external (disk beside it) or bore (a head inside a
+    /// nut's bore).
     pub whirling: Whirling,
     /// R: ring centre to insert nose centre, mm.
     pub ring_radius: f64,
@@ -425,6 +430,7 @@ impl Job {
         })?;
         let file = file.settle()?;
         file.validate()?;
+        file.tool_for_the_groove()?;
         let profile = file.profile(path.parent().unwrap_or(Path::new("")))?;
         // Δ against the groove it is for: beyond the depth it bounds nothing. (The planner
         // refuses one finer than the machine's numbers can hold; that needs the machine.)
@@ -433,6 +439,13 @@ impl Job {
             return Err(JobError::Invalid {
                 key: "cut.delta",
                 value: show_number(file.cut.delta),
+                why,
+            });
+        }
+        if let Some(why) = bore_refusal(&file.tool, rho_min) {
+            return Err(JobError::Invalid {
+                key: "tool.ring_radius",
+                value: show_number(file.tool.ring_radius),
                 why,
             });
         }
@@ -490,6 +503,25 @@ pub(crate) fn depth_refusal(delta: f64, rho_min: f64, rho_max: f64) -> Option<St
     })
 }
 
+/// Why a bore head `tool` does not fit a nut whose bore radius is `bore` (the groove's least
+/// radius): centred in the bore its noses reach R + r from the axis all round, and touching
+/// one side they reach as far across on the other, so the head fits only when R + r is
+/// below the bore radius (kinematics.md, "Internal grooves"). `None` when it fits or the
+/// tool is no bore head.
+fn bore_refusal(tool: &Tool, bore: f64) -> Option<String> {
+    let reach = tool.ring_radius + tool.nose_radius;
+    (tool.whirling == Whirling::Bore && reach >= bore).then(|| {
+        format!(
+            "the bore head does not fit the nut's bore: ring_radius + nose_radius = {} mm \
+             reaches the bore radius {:.4} mm (bore diameter {:.4} mm); a head this size \
+             would cut the far side of the bore",
+            show_figure(reach),
+            bore,
+            2.0 * bore
+        )
+    })
+}
+
 /// A value for a message: Rust's shortest form, in exponent form outside 10⁻⁶ … 10⁹ (where
 /// the plain form spells out hundreds of digits: 1e308, 1e-12).
 pub(crate) fn show_number(v: f64) -> String {
@@ -519,6 +551,15 @@ impl Groove {
     pub fn period(&self) -> f64 {
         TAU / f64::from(self.starts)
     }
+
+    /// Which side of the groove's surface the material lies: outside for a nut.
+    pub fn material(&self) -> Material {
+        if self.internal == Some(true) {
+            Material::Outside
+        } else {
+            Material::Inside
+        }
+    }
 }
 
 impl JobText {
@@ -531,13 +572,6 @@ impl JobText {
             .map(|text| designation::parse(text).map_err(JobError::Designation))
             .transpose()?;
         let text = text.unwrap_or_default();
-        if designation.as_ref().is_some_and(Designation::internal) {
-            return Err(JobError::ProfileSpec(format!(
-                "designation = \"{text}\" names an internal thread (a nut, ISO's capital \
-                 tolerance class); a job's groove is cut on a screw: give the screw's \
-                 class (small letters: 7e, 6g)"
-            )));
-        }
         let disagree = |key, value: String, given: String| JobError::DisagreesWithDesignation {
             key,
             value,
@@ -578,6 +612,19 @@ impl JobText {
                 })
             }
         };
+        // ISO's capital tolerance class (7H, 6H) names the nut: the groove is internal.
+        // (ASME's Acme classes, 2G, name screw and nut alike: the job says which.)
+        let nut = fixed.is_some_and(Designation::internal).then_some(true);
+        let internal = match (groove.internal, nut) {
+            (Some(job), Some(given)) if job != given => {
+                return Err(disagree(
+                    "groove.internal",
+                    job.to_string(),
+                    given.to_string(),
+                ))
+            }
+            (job, given) => job.or(given),
+        };
         let given_hand = fixed.map(|d| if d.left_hand { Hand::Left } else { Hand::Right });
         let hand = match (groove.hand, given_hand) {
             (Some(job), Some(given)) if job != given => {
@@ -603,6 +650,7 @@ impl JobText {
                 hand,
                 z_start: groove.z_start,
                 length: groove.length,
+                internal,
                 profile: groove.profile,
             },
             tool,
@@ -613,6 +661,29 @@ impl JobText {
 }
 
 impl JobFile {
+    /// A nut's groove is cut by a bore head and a screw's by a ring or a disk: a job that
+    /// pairs them otherwise is refused, naming both keys.
+    fn tool_for_the_groove(&self) -> Result<(), JobError> {
+        let internal = self.groove.material() == Material::Outside;
+        let bore = self.tool.whirling == Whirling::Bore;
+        if internal == bore {
+            return Ok(());
+        }
+        Err(JobError::Invalid {
+            key: "tool.whirling",
+            value: format!("{:?}", self.tool.whirling.name()),
+            why: if internal {
+                "[groove] internal = true is a nut's groove, cut from inside its bore: only a \
+                 bore head (whirling = \"bore\") reaches it; a ring or a disk cuts screws"
+                    .into()
+            } else {
+                "a bore head cuts internal grooves only: set [groove] internal = true for a \
+                 nut, or take an internal or external ring for a screw"
+                    .into()
+            },
+        })
+    }
+
     /// Check every value's range, naming the key.
     fn validate(&self) -> Result<(), JobError> {
         let positive = |key: &'static str, v: f64| {
@@ -769,6 +840,7 @@ impl JobFile {
                     self.groove.starts,
                     spec.fit_tolerance,
                 )
+                .map(|profile| profile.with_material(self.groove.material()))
                 .map_err(points_err)
             }
             (None, Some(kind)) => {
@@ -781,10 +853,16 @@ impl JobFile {
                 }
                 let standard = self.standard(kind)?;
                 let pitch = self.groove.lead / f64::from(self.groove.starts);
-                Ok(Profile::from_axial(
-                    standard.pieces(pitch)?,
+                let material = self.groove.material();
+                let pieces = match material {
+                    Material::Inside => standard.pieces(pitch)?,
+                    Material::Outside => standard.internal_pieces(pitch)?,
+                };
+                Ok(Profile::from_axial_of(
+                    pieces,
                     self.groove.p(),
                     self.groove.period(),
+                    material,
                 ))
             }
         }
@@ -819,10 +897,16 @@ impl JobFile {
             None => designation.form,
         };
         let pitch = self.groove.lead / f64::from(self.groove.starts);
-        Ok(Profile::from_axial(
-            form.pieces(pitch)?,
+        let material = self.groove.material();
+        let pieces = match material {
+            Material::Inside => form.pieces(pitch)?,
+            Material::Outside => form.internal_pieces(pitch)?,
+        };
+        Ok(Profile::from_axial_of(
+            pieces,
             self.groove.p(),
             self.groove.period(),
+            material,
         ))
     }
 

@@ -7,7 +7,7 @@
 //! cutting-side angle C₀ and solved with Brent's method.
 
 use crate::geometry::brent;
-use crate::geometry::profile::{surface_normal, ProfilePoint};
+use crate::geometry::profile::{Material, ProfilePoint};
 use glam::{DVec2, DVec3};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -21,14 +21,36 @@ pub enum Whirling {
     Internal,
     /// A cutter disk beside the workpiece cuts on the +X side (k = −1).
     External,
+    /// A head inside a nut's bore, its inserts pointing outward, cuts the internal groove on
+    /// the +X side (k = −1), its centre nearer the axis than the contact (kinematics.md,
+    /// "Internal grooves").
+    Bore,
 }
 
 impl Whirling {
-    /// kinematics.md's k: +1 internal, −1 external.
+    /// kinematics.md's k: +1 internal, −1 external and bore.
     pub fn k(self) -> f64 {
         match self {
             Whirling::Internal => 1.0,
-            Whirling::External => -1.0,
+            Whirling::External | Whirling::Bore => -1.0,
+        }
+    }
+
+    /// The side of the groove's surface the material lies on for the grooves this tool cuts:
+    /// a ring or a disk cuts a screw (inside), a bore head a nut (outside).
+    pub fn material(self) -> Material {
+        match self {
+            Whirling::Internal | Whirling::External => Material::Inside,
+            Whirling::Bore => Material::Outside,
+        }
+    }
+
+    /// The job file's word for it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Whirling::Internal => "internal",
+            Whirling::External => "external",
+            Whirling::Bore => "bore",
         }
     }
 }
@@ -46,7 +68,7 @@ pub struct Ring {
     pub installation: f64,
     /// Half the insert's cutting-edge arc, radians: the largest angle between the contact
     /// direction −n and the insert's axis (the ring's radial direction at N, inwards for internal
-    /// whirling, outwards for external) at which the edge still cuts.
+    /// whirling, outwards for external and bore) at which the edge still cuts.
     pub edge_half_angle: f64,
 }
 
@@ -135,6 +157,9 @@ struct Tilt {
     cos: f64,
     /// The ring axis a_M.
     axis: DVec3,
+    /// Which root of condition (2) places the ring centre: +1 on the +X side of N (a ring or
+    /// a disk), −1 on the axis side (a bore head, whose contact is beyond its centre).
+    side: f64,
 }
 
 /// `v` turned about the z axis by the angle whose sine and cosine are `s` and `co`: [`turn`]
@@ -166,6 +191,10 @@ impl Linkage {
             tan: de.tan(),
             cos: de.cos(),
             axis: self.axis(),
+            side: match self.ring.whirling {
+                Whirling::Internal | Whirling::External => 1.0,
+                Whirling::Bore => -1.0,
+            },
         }
     }
 
@@ -178,7 +207,10 @@ impl Linkage {
         if needed > radius {
             return Err(needed);
         }
-        Ok((n_m.x + (radius * radius - needed * needed).sqrt(), z))
+        Ok((
+            n_m.x + tilt.side * (radius * radius - needed * needed).sqrt(),
+            z,
+        ))
     }
 
     /// g(C): the meridian condition (3), n_M · (a_M × (N_M − O_M)); NaN out of reach.
@@ -191,9 +223,14 @@ impl Linkage {
         }
     }
 
-    /// The pose that touches the profile point at θ = 0 (kinematics.md, "The linkage").
+    /// The pose that touches the profile point at θ = 0 (kinematics.md, "The linkage"), of a
+    /// groove whose material lies on the side the ring cuts ([`Whirling::material`]).
     pub fn solve(&self, point: &ProfilePoint) -> Result<Contact, LinkageError> {
-        let normal = surface_normal(point.pos, point.tangent, self.p);
+        let normal = self
+            .ring
+            .whirling
+            .material()
+            .normal(point.pos, point.tangent, self.p);
         self.solve_normal(point.pos, normal)
     }
 
@@ -202,7 +239,7 @@ impl Linkage {
         let nose = DVec3::new(pos.x, pos.y, 0.0) + self.ring.nose * normal;
         let c0 = match self.ring.whirling {
             Whirling::Internal => PI - nose.y.atan2(nose.x),
-            Whirling::External => -nose.y.atan2(nose.x),
+            Whirling::External | Whirling::Bore => -nose.y.atan2(nose.x),
         };
         let tilt = self.tilt();
         let g = |c: f64| self.meridian(&tilt, nose, normal, c);
@@ -218,7 +255,7 @@ impl Linkage {
         let inward = (centre - n_m).normalize();
         let insert_axis = match self.ring.whirling {
             Whirling::Internal => inward,
-            Whirling::External => -inward,
+            Whirling::External | Whirling::Bore => -inward,
         };
         let normal_m = turn(normal, c);
         let off = (-normal_m).angle_between(insert_axis);
@@ -389,6 +426,50 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_bore_head_meets_the_radial_check_values() {
+        // A nut's root or bore (the material outside, the normal towards the axis): the nose
+        // centre lies at ρ − r, beyond the head's centre, so X = ρ − r − R, C = −φ, Z = 0,
+        // whatever δ and the hand. Its meridian normal points at the insert's outward axis.
+        for delta in [0.0, 3.0, 18.0, 33.0] {
+            for (rho, phi) in [(20.5, 0.0), (16.5, 1.0), (18.0, -2.5)] {
+                for p in [7.0 / TAU, -9.5] {
+                    let (r, big_r) = (0.4, 12.0);
+                    let bore = Linkage {
+                        p,
+                        ring: ring(Whirling::Bore, big_r, r, delta),
+                    };
+                    let c = bore.solve(&radial_point(rho, phi)).unwrap();
+                    assert!((c.pose.x - (rho - r - big_r)).abs() < 1e-9, "{:?}", c.pose);
+                    assert!(angle_eq(c.pose.c, -phi), "{} vs {}", c.pose.c, -phi);
+                    assert!(c.pose.z.abs() < 1e-9);
+                    // The head's torus touches the surface point there and keeps its centre
+                    // nearer the axis than the contact.
+                    let q = DVec3::new(rho * phi.cos(), rho * phi.sin(), 0.0);
+                    assert!(bore.gap(q, &c.pose).abs() < 1e-9);
+                    assert!(c.pose.x < rho);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_screws_normal_puts_a_bore_heads_nose_two_radii_into_the_wall() {
+        // The nut's outward normal is the screw's reversed, so a nose placed by the screw's
+        // rule (centre r behind the surface, in the nut's wall) sits 2r further out: the
+        // bore head solved for the same radial point with the nut's normal and with the
+        // screw's differs by 2r in X.
+        let l = Linkage {
+            p: 7.0 / TAU,
+            ring: ring(Whirling::Bore, 12.0, 0.4, 3.0),
+        };
+        let point = radial_point(20.5, 0.3);
+        let nut = l.solve(&point).unwrap();
+        let screw_normal = Material::Inside.normal(point.pos, point.tangent, l.p);
+        let wrong = l.solve_normal(point.pos, screw_normal).unwrap();
+        assert!((wrong.pose.x - nut.pose.x - 0.8).abs() < 1e-9);
     }
 
     fn angle_eq(a: f64, b: f64) -> bool {

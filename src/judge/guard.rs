@@ -40,10 +40,10 @@ pub struct DeltaGuard {
     delta: f64,
     /// X words are diameters: the motion's X is half of them.
     x_diameter: bool,
-    /// The ring the groove is cut with, and the work's largest radius: where the ring is
-    /// clear of the work.
+    /// The ring the groove is cut with, and the work's least and largest radius: where the
+    /// ring is clear of the work.
     ring: Ring,
-    rho_max: f64,
+    radii: (f64, f64),
     /// For each profile position of the grid, the lowest and highest Z offset of the poses
     /// that seed its search.
     reach: Vec<(f64, f64)>,
@@ -74,7 +74,7 @@ impl DeltaGuard {
             })
             .collect();
         let open = grid.samples.iter().copied().collect();
-        let (_, rho_max) = job.profile.radius_range();
+        let radii = job.profile.radius_range();
         Ok(DeltaGuard {
             target,
             grid,
@@ -82,7 +82,7 @@ impl DeltaGuard {
             delta: job.cut.delta,
             x_diameter: machine.x_diameter(),
             ring,
-            rho_max,
+            radii,
             reach,
             open,
             ordered: false,
@@ -157,7 +157,8 @@ impl Guard for DeltaGuard {
         let at = |p: whirl_sim::Position| [p.x * scale, p.z, p.c];
         // X moves along a straight move, so a ring clear at both ends is clear all along;
         // clear of the work's largest radius by Δ more, as that radius is sampled.
-        let clear = |x: f64| clear_of_the_work(&self.ring, x * scale, self.rho_max + self.delta);
+        let work = (self.radii.0 - self.delta, self.radii.1 + self.delta);
+        let clear = |x: f64| clear_of_the_work(&self.ring, x * scale, work);
         if clear(block.from.x) && clear(block.to.x) {
             return Ok(());
         }
@@ -215,18 +216,21 @@ impl Guard for DeltaGuard {
     }
 }
 
-/// Whether `ring`, its centre `x` (a radius) off the work's axis, keeps clear of a work of
-/// radius `rho` all round, whatever C and Z are: an internal ring's tip circle, tilted by
-/// δ, projects onto the transverse plane as an ellipse whose points are at least R·cos δ
-/// from its centre, so at least R·cos δ − |x| from the axis; an external ring's are at
-/// most R from its centre, so at least |x| − R from the axis; the insert's nose reaches r
-/// further. (The planner's clear position is such an X: `plan::clear_x`.)
-fn clear_of_the_work(ring: &Ring, x: f64, rho: f64) -> bool {
-    let nearest = match ring.whirling {
-        Whirling::Internal => ring.radius * ring.installation.cos() - x.abs(),
-        Whirling::External => x.abs() - ring.radius,
-    };
-    nearest - ring.nose > rho
+/// Whether `ring`, its centre `x` (a radius) off the work's axis, keeps clear of a work
+/// whose surface lies between the radii `rho` all round, whatever C and Z are: an internal
+/// ring's tip circle, tilted by δ, projects onto the transverse plane as an ellipse whose
+/// points are at least R·cos δ from its centre, so at least R·cos δ − |x| from the axis; an
+/// external ring's are at most R from its centre, so at least |x| − R from the axis; the
+/// insert's nose reaches r further. A bore head's points are at most |x| + R + r from the
+/// axis, clear of a nut whose bore is wider. (The planner's clear position is such an X:
+/// `plan::clear_x`.)
+fn clear_of_the_work(ring: &Ring, x: f64, rho: (f64, f64)) -> bool {
+    let (rho_min, rho_max) = rho;
+    match ring.whirling {
+        Whirling::Internal => ring.radius * ring.installation.cos() - x.abs() - ring.nose > rho_max,
+        Whirling::External => x.abs() - ring.radius - ring.nose > rho_max,
+        Whirling::Bore => x.abs() + ring.radius + ring.nose < rho_min,
+    }
 }
 
 #[cfg(test)]
@@ -389,20 +393,29 @@ mod tests {
         // axis, the nose 1.2 nearer, so clear while |x| < 24.8, either side.
         let internal = ring(Whirling::Internal, 60.0, 1.2, 0.0);
         for x in [0.0, 24.7, -24.7] {
-            assert!(clear_of_the_work(&internal, x, 34.0), "{x}");
+            assert!(clear_of_the_work(&internal, x, (30.0, 34.0)), "{x}");
         }
         for x in [24.9, -24.9, 34.0] {
-            assert!(!clear_of_the_work(&internal, x, 34.0), "{x}");
+            assert!(!clear_of_the_work(&internal, x, (30.0, 34.0)), "{x}");
         }
         // Tilted by 60°: the tip circle's projection is R·cos 60° = 30 across at its
         // narrowest, so clear while |x| < 30 − 1.2 − 20 = 8.8 of a 20 mm work.
         let tilted = ring(Whirling::Internal, 60.0, 1.2, 60.0);
-        assert!(clear_of_the_work(&tilted, 8.7, 20.0));
-        assert!(!clear_of_the_work(&tilted, 8.9, 20.0));
+        assert!(clear_of_the_work(&tilted, 8.7, (16.0, 20.0)));
+        assert!(!clear_of_the_work(&tilted, 8.9, (16.0, 20.0)));
         // External, R 45, r 1, work radius 20: clear beyond x = 45 + 1 + 20 = 66.
         let external = ring(Whirling::External, 45.0, 1.0, 20.0);
-        assert!(clear_of_the_work(&external, 66.1, 20.0));
-        assert!(clear_of_the_work(&external, -66.1, 20.0));
-        assert!(!clear_of_the_work(&external, 65.9, 20.0));
+        assert!(clear_of_the_work(&external, 66.1, (16.0, 20.0)));
+        assert!(clear_of_the_work(&external, -66.1, (16.0, 20.0)));
+        assert!(!clear_of_the_work(&external, 65.9, (16.0, 20.0)));
+        // A bore head, R 12, r 0.8, in a nut whose bore is 16.5 mm in radius: its nose
+        // reaches |x| + 12.8 from the axis, clear while |x| < 3.7, either side.
+        let bore = ring(Whirling::Bore, 12.0, 0.8, 10.0);
+        for x in [0.0, 3.6, -3.6] {
+            assert!(clear_of_the_work(&bore, x, (16.5, 20.25)), "{x}");
+        }
+        for x in [3.8, -3.8, 7.0] {
+            assert!(!clear_of_the_work(&bore, x, (16.5, 20.25)), "{x}");
+        }
     }
 }

@@ -21,7 +21,6 @@
 
 use crate::geometry::linkage::{turn, Linkage, Torus};
 use crate::geometry::minimise::scan_then_golden;
-use crate::geometry::profile::surface_normal;
 use crate::geometry::profile::Profile;
 use crate::judge::svg::{Plot, Series};
 use crate::plan::table::Table;
@@ -521,7 +520,7 @@ impl Target {
                 }
                 let error_mm = self.error_at(&self.probe(point.pos, start, z), &near, motion);
                 let normal = turn(
-                    surface_normal(point.pos, point.tangent, p),
+                    self.profile.normal(&point, p),
                     theta + phi - point.pos.to_angle(),
                 );
                 let axial = DVec2::new(normal.z, normal.x).normalize_or_zero();

@@ -27,7 +27,7 @@
 
 use crate::config::job::Job;
 use crate::geometry::brent;
-use crate::geometry::profile::{surface_normal, Profile};
+use crate::geometry::profile::Profile;
 use crate::judge::svg::{Plot, Series};
 use crate::judge::verify::magnification;
 use glam::{DVec2, DVec3};
@@ -679,7 +679,7 @@ impl<'a> SectionTarget<'a> {
                 u,
                 pos: point.pos,
                 phi: unwrap(point.pos.y.atan2(point.pos.x), hint),
-                normal: surface_normal(point.pos, point.tangent, p),
+                normal: profile.normal(&point, p),
             });
         }
         let (rho_min, rho_max) = profile.radius_range();
@@ -729,7 +729,7 @@ impl<'a> SectionTarget<'a> {
     fn at_u(&self, u: f64, hint: f64, copy: i64) -> CurvePoint {
         let point = self.profile.point(u);
         let phi = unwrap(point.pos.y.atan2(point.pos.x), hint);
-        let normal = surface_normal(point.pos, point.tangent, self.p);
+        let normal = self.profile.normal(&point, self.p);
         self.place(point.pos, phi, normal, copy)
     }
 

@@ -168,13 +168,15 @@ pub fn insert_turn(inserts: u32, workpiece_rpm: f64, ring_rpm: f64) -> f64 {
 }
 
 /// The insert cusp at polar radius `rho` for a workpiece turn `turn` between insert hits
-/// (clipped at zero where the ring is flatter than the work).
+/// (clipped at zero where the ring is flatter than the work). A bore head's convex tip
+/// circle inside a nut's concave surface: `1/R − 1/ρ`.
 pub fn cusp_at(rho: f64, linkage: &Linkage, turn: f64) -> f64 {
     let big_r = linkage.ring.radius;
     let arc = rho * turn;
     let relative = match linkage.ring.whirling {
         Whirling::Internal => 1.0 / rho - 1.0 / big_r,
         Whirling::External => 1.0 / rho + 1.0 / big_r,
+        Whirling::Bore => 1.0 / big_r - 1.0 / rho,
     };
     arc * arc / 8.0 * relative.max(0.0)
 }

@@ -560,7 +560,8 @@ fn link_of(machine: &MachineProfile) -> Option<ByteLink> {
 /// meets new stock where the ring's imprint rises out of the groove along the helix: a pass
 /// spacing τ apart in screw angle, the imprints at radius ρ differ by
 /// a(ρ) = ρ·τ·√(2·(ρ_max − ρ)·κ(ρ)) at the work's surface, κ = 1/ρ ∓ 1/R the relative
-/// curvature of groove and ring along the helix (− internal, + external). A round nose of
+/// curvature of groove and ring along the helix (− internal, + external); a bore head meets
+/// the stock of a nut, `a(ρ) = ρ·τ·√(2·(ρ − ρ_min)·(1/R − 1/ρ))`. A round nose of
 /// radius r taking a step f_z into stock a thick cuts a chip of f_z·sin κ_r, with
 /// cos κ_r = 1 − a/r (a ≥ r: f_z), as a round turning insert does. The largest step and the
 /// deepest stock are taken together, wherever each is: an upper bound.
@@ -589,11 +590,15 @@ pub fn stock(job: &Job, feed: f64) -> f64 {
     (0..STOCK_SAMPLES)
         .map(|k| {
             let rho = rho_min + (rho_max - rho_min) * k as f64 / STOCK_SAMPLES as f64;
-            let curvature = match job.tool.whirling {
-                Whirling::Internal => 1.0 / rho - 1.0 / big_r,
-                Whirling::External => 1.0 / rho + 1.0 / big_r,
+            // The depth of stock above the surface at ρ, and the curvature of the tool
+            // relative to the work there: a bore head cuts outward from the bore, its convex
+            // tip circle inside the nut's concave surface.
+            let (depth, curvature) = match job.tool.whirling {
+                Whirling::Internal => (rho_max - rho, 1.0 / rho - 1.0 / big_r),
+                Whirling::External => (rho_max - rho, 1.0 / rho + 1.0 / big_r),
+                Whirling::Bore => (rho - rho_min, 1.0 / big_r - 1.0 / rho),
             };
-            rho * tau * (2.0 * (rho_max - rho) * curvature.max(0.0)).sqrt()
+            rho * tau * (2.0 * depth * curvature.max(0.0)).sqrt()
         })
         .fold(0.0, f64::max)
 }

@@ -458,10 +458,7 @@ pub(crate) fn plan_resolved(
             crate::config::job::Hand::Left => "left",
         },
         job.groove.lead,
-        match ring.whirling {
-            Whirling::Internal => "internal",
-            Whirling::External => "external",
-        },
+        ring.whirling.name(),
         ring.radius,
         ring.nose,
         delta
@@ -624,10 +621,12 @@ fn check_delta(
 
 /// The X at which a ring of radius `radius` and nose `nose` is clear of the work all round,
 /// whatever its tilt, if it clears it at all: internal, centred on the axis (X = 0); external,
-/// the disk beside the work, its nearest point at X − R − r from the axis.
+/// the disk beside the work, its nearest point at X − R − r from the axis; a bore head,
+/// centred in the bore (X = 0), where it is R + r from the axis all round and the job has
+/// made sure that is inside the bore ([`crate::config::job`]).
 fn clear_position(whirling: Whirling, radius: f64, nose: f64, rho_max: f64) -> f64 {
     match whirling {
-        Whirling::Internal => 0.0,
+        Whirling::Internal | Whirling::Bore => 0.0,
         Whirling::External => radius + nose + rho_max + CLEARANCE,
     }
 }

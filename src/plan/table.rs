@@ -8,7 +8,7 @@
 //! pose, ψ turning back, or X jumping (the ring meeting the groove on another branch).
 
 use crate::geometry::linkage::{turn, Contact, Linkage, LinkageError};
-use crate::geometry::profile::{surface_normal, Profile};
+use crate::geometry::profile::Profile;
 use glam::{DVec2, DVec3};
 use std::f64::consts::TAU;
 
@@ -131,10 +131,7 @@ impl Table {
                     u,
                     pos: point.pos,
                     contact,
-                    normal: turn(
-                        surface_normal(point.pos, point.tangent, linkage.p),
-                        contact.pose.c,
-                    ),
+                    normal: turn(profile.normal(&point, linkage.p), contact.pose.c),
                 })
                 .map_err(|error| TableError::Linkage {
                     x: point.pos.x,

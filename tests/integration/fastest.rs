@@ -116,14 +116,18 @@ fn chip(job: &Job, moves: &[Linked], feed: f64) -> f64 {
     let tau = (TAU * feed / (TAU * p + feed)).abs();
     let (lo, hi) = job.profile.radius_range();
     let big_r = job.tool.ring_radius;
-    let sign = match job.tool.whirling {
-        whirl::geometry::linkage::Whirling::Internal => -1.0,
-        whirl::geometry::linkage::Whirling::External => 1.0,
-    };
+    use whirl::geometry::linkage::Whirling;
     let stock = (0..=1000)
         .map(|k| {
             let rho = lo + (hi - lo) * f64::from(k) / 1000.0;
-            rho * tau * (2.0 * (hi - rho) * (1.0 / rho + sign / big_r).max(0.0)).sqrt()
+            // The stock's depth at ρ, and the relative curvature of work and ring there: a
+            // bore head cuts outward from the bore, its tip circle inside the nut's surface.
+            let (depth, curvature) = match job.tool.whirling {
+                Whirling::Internal => (hi - rho, 1.0 / rho - 1.0 / big_r),
+                Whirling::External => (hi - rho, 1.0 / rho + 1.0 / big_r),
+                Whirling::Bore => (rho - lo, 1.0 / big_r - 1.0 / rho),
+            };
+            rho * tau * (2.0 * depth * curvature.max(0.0)).sqrt()
         })
         .fold(0.0, f64::max);
     let cos = 1.0 - (stock / job.tool.nose_radius).min(1.0);

@@ -19,6 +19,7 @@ mod machines;
 mod measure;
 mod modbus_map;
 mod modbus_wire;
+mod nut;
 mod outputs;
 mod overrides;
 mod profiles;

@@ -39,7 +39,7 @@ impl Ring {
     fn new(job: &Job, installation_deg: f64) -> Ring {
         let k = match job.tool.whirling {
             Whirling::Internal => 1.0,
-            Whirling::External => -1.0,
+            Whirling::External | Whirling::Bore => -1.0,
         };
         let de = job.p().signum() * installation_deg.to_radians();
         Ring {
@@ -258,6 +258,11 @@ fn left_hand_external_stays_within_delta() {
 #[test]
 fn axial_standard_trapezoidal_stays_within_delta() {
     assert_within_delta("trapezoidal");
+}
+
+#[test]
+fn trapezoidal_nut_stays_within_delta() {
+    assert_within_delta("trapezoidal-nut");
 }
 
 #[test]

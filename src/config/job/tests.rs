@@ -177,3 +177,102 @@ fn every_designation_refusal_of_a_job_names_what() {
         "{e}"
     );
 }
+
+/// The nut example (Tr 40x7 internal, bore D1 = 33 mm) with `edit` applied to its text.
+fn nut(edit: impl Fn(String) -> String) -> Result<Job, JobError> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/trapezoidal-nut/job.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    Job::from_toml(&edit(text), &path)
+}
+
+#[test]
+fn a_nut_has_its_material_outside_between_the_bore_and_d4() {
+    // ISO 2904 Tr 40x7: D1 = d − P = 33, D4 = d + 2·a_c = 41 (a_c = 0.5 for P 6 to 12).
+    let job = nut(|t| t).unwrap();
+    assert_eq!(job.profile.material(), Material::Outside);
+    let (lo, hi) = job.profile.radius_range();
+    assert!(
+        (lo - 16.5).abs() < 1e-9 && (hi - 20.5).abs() < 1e-9,
+        "{lo} {hi}"
+    );
+    // The normal points from the wall into the groove: towards the axis on the root flat.
+    let root = (0..400)
+        .map(|k| {
+            job.profile
+                .point(job.profile.length() * f64::from(k) / 400.0)
+        })
+        .max_by(|a, b| a.pos.length().total_cmp(&b.pos.length()))
+        .unwrap();
+    let n = job.profile.normal(&root, job.p());
+    assert!(n.truncate().dot(root.pos.normalize()) < -0.99, "{n}");
+}
+
+#[test]
+fn a_head_that_does_not_fit_the_bore_is_refused_naming_the_sizes() {
+    // R + r = 16.1 + 0.4 = 16.5 mm reaches the 16.5 mm bore radius.
+    let e = nut(|t| t.replace("ring_radius = 12.0", "ring_radius = 16.1")).unwrap_err();
+    let JobError::Invalid { key, value, why } = &e else {
+        panic!("{e}")
+    };
+    assert_eq!((*key, value.as_str()), ("tool.ring_radius", "16.1"));
+    assert!(
+        why.contains("16.5 mm") && why.contains("16.5000 mm"),
+        "{why}"
+    );
+    assert!(why.contains("bore diameter 33.0000 mm"), "{why}");
+    // Just inside the bore it is the planner's to judge.
+    nut(|t| t.replace("ring_radius = 12.0", "ring_radius = 16.0")).unwrap();
+}
+
+#[test]
+fn a_screw_tool_on_a_nut_and_a_bore_head_on_a_screw_are_refused_naming_both_keys() {
+    for whirling in ["internal", "external"] {
+        let e = nut(|t| t.replace("\"bore\"", &format!("\"{whirling}\""))).unwrap_err();
+        let text = e.to_string();
+        assert!(
+            text.contains("tool.whirling") && text.contains("internal = true"),
+            "{text}"
+        );
+    }
+    let e = nut(|t| t.replace("internal = true", "internal = false")).unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("tool.whirling = \"bore\"") && text.contains("internal = true"),
+        "{text}"
+    );
+}
+
+#[test]
+fn a_nut_of_a_form_without_a_nut_is_refused() {
+    // A ball screw's raceway is a screw's groove: its nut is another part, not its mirror.
+    let e = nut(|t| {
+        t.replace(
+            "standard = \"trapezoidal\"\nmajor_diameter = 40.0\nroot_radius = 0.5",
+            "standard = \"ball-arc\"\nball_diameter = 3.5\ngroove_radius = 1.85\n\
+             pitch_diameter = 40.0\nouter_diameter = 39.5",
+        )
+    })
+    .unwrap_err();
+    assert!(e.to_string().contains("no internal (nut) form"), "{e}");
+}
+
+#[test]
+fn a_capital_class_designation_makes_the_groove_a_nut_and_a_job_saying_otherwise_is_refused() {
+    // ISO 2903: the internal thread's tolerance class is written in capitals (7H).
+    let designated = |internal: &str| {
+        nut(|t| {
+            t.replace(
+                "standard = \"trapezoidal\"\nmajor_diameter = 40.0",
+                "designation = \"Tr 40x7-7H\"",
+            )
+            .replace("internal = true", internal)
+        })
+    };
+    let job = designated("").unwrap();
+    assert_eq!(job.groove.material(), Material::Outside);
+    // The nut's bore is D1 = d − P = 33 mm (ISO 2904), its groove reaching D4 = 41 mm.
+    let (rho_min, rho_max) = job.profile.radius_range();
+    assert!((rho_min - 16.5).abs() < 1e-9 && (rho_max - 20.5).abs() < 1e-9);
+    let e = designated("internal = false").unwrap_err();
+    assert!(e.to_string().contains("groove.internal"), "{e}");
+}

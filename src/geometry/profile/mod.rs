@@ -26,12 +26,45 @@ use spline::Spline;
 use standard::AxialPiece;
 use std::f64::consts::PI;
 
-/// Outward unit normal of the helical surface at the profile point `(pos, tangent)`, θ = 0:
-/// `n ∝ (p·y′, −p·x′, x·x′ + y·y′)`, oriented so that its in-plane part points away from the
-/// material (to the right of a tangent running with increasing polar angle).
+/// Outward unit normal of the helical surface at the profile point `(pos, tangent)`, θ = 0,
+/// of an external groove (a screw: the material inside): `n ∝ (p·y′, −p·x′, x·x′ + y·y′)`,
+/// oriented so that its in-plane part points away from the material (to the right of a
+/// tangent running with increasing polar angle). [`Material::normal`] gives either side's.
 pub fn surface_normal(pos: DVec2, tangent: DVec2, p: f64) -> DVec3 {
     let n = DVec3::new(p * tangent.y, -p * tangent.x, pos.dot(tangent));
     (n * p.signum()).normalize()
+}
+
+/// Which side of the groove's surface the material lies (kinematics.md, "Internal grooves").
+///
+/// A screw's groove has the material inside (towards the axis), a nut's outside. The side
+/// sets which way the surface normal points (always from the material into the groove),
+/// which edges are convex, and so which turns a nose can roll round.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Material {
+    /// An external groove (a screw shaft): the material lies nearer the axis.
+    #[default]
+    Inside,
+    /// An internal groove (a nut): the material lies outside the surface, the bore is the
+    /// groove's smallest radius.
+    Outside,
+}
+
+impl Material {
+    /// +1 inside, −1 outside: the sign that turns the external groove's orientations (the
+    /// normal, a convex turn) into this side's.
+    pub fn sign(self) -> f64 {
+        match self {
+            Material::Inside => 1.0,
+            Material::Outside => -1.0,
+        }
+    }
+
+    /// The outward unit normal (from the material into the groove) at `(pos, tangent)`:
+    /// [`surface_normal`]'s, reversed when the material lies outside.
+    pub fn normal(self, pos: DVec2, tangent: DVec2, p: f64) -> DVec3 {
+        self.sign() * surface_normal(pos, tangent, p)
+    }
 }
 
 /// A point of the transverse profile with its first-order geometry.
@@ -61,7 +94,9 @@ pub enum Piece {
         reversed: bool,
     },
     /// A convex edge: the point stays at `at` while the tangent angle turns from `from` to `to`
-    /// (radians, `to > from`). Its parameter length is the turning angle, in radians.
+    /// (radians; `to > from` where the material lies inside, `to < from` where it lies
+    /// outside, as a nut's crest edge turns the tangent clockwise). Its parameter length is
+    /// the turning angle's size, in radians.
     Corner {
         /// The edge point.
         at: DVec2,
@@ -77,7 +112,7 @@ impl Piece {
         match self {
             Piece::Spline(s) => s.length(),
             Piece::Axial { piece, .. } => piece.length(),
-            Piece::Corner { from, to, .. } => to - from,
+            Piece::Corner { from, to, .. } => (to - from).abs(),
         }
     }
 
@@ -106,11 +141,20 @@ impl Piece {
                 (c2v(pos), c2v(d1), c2v(d2))
             }
             Piece::Corner { at, from, to } => {
-                let angle = from + s.clamp(0.0, to - from);
+                let angle = from + (to - from).signum() * s.clamp(0.0, (to - from).abs());
                 (*at, DVec2::from_angle(angle), DVec2::ZERO)
             }
         }
     }
+}
+
+/// The signed angle from `a` to `b`, radians (counter-clockwise positive), exact near zero:
+/// `atan2` of their cross and dot products. (`DVec2::angle_to` takes an `acos` of the
+/// normalised dot product, which reads a tangent join as a kink of about 1.5·10⁻⁸ rad, the
+/// square root of the rounding; at a nut's fillet such a kink became a corner turned the
+/// wrong way.)
+fn turning(a: DVec2, b: DVec2) -> f64 {
+    a.perp_dot(b).atan2(a.dot(b))
 }
 
 fn c2v(c: Complex64) -> DVec2 {
@@ -128,6 +172,8 @@ pub struct Profile {
     rounding: Option<Rounding>,
     /// For a curve fitted to points within a band, how far it lies from them.
     fit: Option<Fit>,
+    /// Which side of the surface the material lies.
+    material: Material,
 }
 
 /// How far a profile fitted to rounded or measured points ([`smoothing`]) lies from them.
@@ -183,7 +229,25 @@ impl Profile {
             period,
             rounding: None,
             fit: None,
+            material: Material::Inside,
         }
+    }
+
+    /// The same curve with the material on side `material` (a nut's groove: outside).
+    pub fn with_material(mut self, material: Material) -> Profile {
+        self.material = material;
+        self
+    }
+
+    /// Which side of the surface the material lies.
+    pub fn material(&self) -> Material {
+        self.material
+    }
+
+    /// The outward unit normal (from the material into the groove) at `point`, θ = 0, for
+    /// lead parameter `p`.
+    pub fn normal(&self, point: &ProfilePoint, p: f64) -> DVec3 {
+        self.material.normal(point.pos, point.tangent, p)
     }
 
     /// For a profile fitted to points within a band, how far it lies from them (`None` for
@@ -199,9 +263,22 @@ impl Profile {
     }
 
     /// A profile from the axial pieces of one period (ordered by increasing z), for lead
-    /// parameter `p`. Sharp convex edges become [`Piece::Corner`]s; sharp concave ones are kept
-    /// as they are and reported by [`Profile::concave_stretches`].
+    /// parameter `p`, the material inside (a screw). Sharp convex edges become
+    /// [`Piece::Corner`]s; sharp concave ones are kept as they are and reported by
+    /// [`Profile::concave_stretches`].
     pub fn from_axial(axial: Vec<AxialPiece>, p: f64, period: f64) -> Profile {
+        Profile::from_axial_of(axial, p, period, Material::Inside)
+    }
+
+    /// [`Profile::from_axial`] with the material on side `material`. A nut's section
+    /// (kinematics.md, "Internal grooves") runs outward from the bore at both ends, and its
+    /// convex edges turn the tangent the other way (clockwise along increasing polar angle).
+    pub fn from_axial_of(
+        axial: Vec<AxialPiece>,
+        p: f64,
+        period: f64,
+        material: Material,
+    ) -> Profile {
         let reversed = p > 0.0;
         let mut ordered = axial;
         if reversed {
@@ -221,10 +298,8 @@ impl Profile {
             if i + 1 == n {
                 d_in = DVec2::from_angle(period).rotate(d_in);
             }
-            // atan2, not glam's `angle_to`: its arccosine reads a zero turn as up to 1.5e-8 rad,
-            // which put corners between the tangent arcs of a curved flank (standard::worm).
-            let turn = d_out.perp_dot(d_in).atan2(d_out.dot(d_in));
-            if turn > 1e-9 {
+            let turn = turning(d_out, d_in);
+            if turn * material.sign() > 1e-9 {
                 let from = d_out.to_angle();
                 pieces.push(Piece::Corner {
                     at: end,
@@ -233,7 +308,7 @@ impl Profile {
                 });
             }
         }
-        Profile::new(pieces, period)
+        Profile::new(pieces, period).with_material(material)
     }
 
     /// Polar period `2π / starts`, radians.
@@ -342,7 +417,7 @@ impl Profile {
             }
             let (end, d_out, _) = piece.eval(piece.length());
             let (_, d_in, _) = next.eval(0.0);
-            let turn = d_out.perp_dot(d_in).atan2(d_out.dot(d_in));
+            let turn = turning(d_out, d_in) * self.material.sign();
             if turn < -1e-9 {
                 let n_out = self.normal3(end, d_out, p);
                 let n_in = self.normal3(end, d_in, p);
@@ -388,7 +463,7 @@ impl Profile {
     }
 
     fn normal3(&self, pos: DVec2, tangent: DVec2, p: f64) -> DVec3 {
-        surface_normal(pos, tangent, p)
+        self.material.normal(pos, tangent, p)
     }
 
     /// Normal curvature of the helical surface at `(u, θ = 0)` across the groove (positive where
@@ -397,7 +472,7 @@ impl Profile {
     fn cross_curvature(&self, u: f64, p: f64) -> (f64, f64) {
         use glam::DVec3;
         let (pos, d1, d2) = self.derivatives(u);
-        let n = surface_normal(pos, d1, p);
+        let n = self.material.normal(pos, d1, p);
         let su = DVec3::new(d1.x, d1.y, 0.0);
         let st = DVec3::new(-pos.y, pos.x, p);
         let suu = DVec3::new(d2.x, d2.y, 0.0);
