@@ -6,13 +6,17 @@
 //! - sampled points, fitted by a periodic cubic spline ([`points`], [`spline`]), or
 //! - the exact axial section of a standard thread ([`standard`]), turned into the transverse
 //!   section by kinematics.md's rule: the axial point `(ρ, z)` is the transverse point at radius
-//!   `ρ` and polar angle `−z / p`.
+//!   `ρ` and polar angle `−z / p`, or
+//! - a CAD drawing ([`drawing`]): its lines, arcs and splines kept as the exact curves they are
+//!   ([`Piece::Line`], [`Piece::Arc`], [`Piece::Nurbs`]), in either section.
 //!
 //! Convex corners (a crest edge of a standard thread) are kept sharp: they become a
 //! [`Piece::Corner`] along which the point stays put and the tangent turns, so the ring rolls
 //! its nose around the edge. A concave corner cannot be cut by a nose of finite radius and is
 //! reported by [`Profile::concave_stretches`].
 
+pub mod drawing;
+pub mod nurbs;
 pub mod points;
 pub mod smoothing;
 pub mod spline;
@@ -22,6 +26,7 @@ pub(crate) mod testing;
 
 use glam::{DVec2, DVec3};
 use num_complex::Complex64;
+use nurbs::Nurbs;
 use spline::Spline;
 use standard::AxialPiece;
 use std::f64::consts::PI;
@@ -60,6 +65,36 @@ pub enum Piece {
         /// Whether the piece is traversed from its end to its start.
         reversed: bool,
     },
+    /// A straight line of the transverse section; parameter = length.
+    Line {
+        /// Start point.
+        from: DVec2,
+        /// End point.
+        to: DVec2,
+    },
+    /// A circular arc of the transverse section; parameter = arc length.
+    Arc {
+        /// Centre.
+        centre: DVec2,
+        /// Radius, mm.
+        radius: f64,
+        /// Polar angle of the start point about the centre, radians.
+        start: f64,
+        /// Angle swept, radians: positive counter-clockwise.
+        sweep: f64,
+    },
+    /// A NURBS curve of the transverse section (`axial: None`), or of an axial section
+    /// (points `(ρ, z)`) seen in the transverse plane for lead parameter `p` (`axial: Some(p)`),
+    /// mapped as [`Piece::Axial`] maps lines and arcs. Parameter = the curve's knot parameter
+    /// scaled to its length, so that the speed along it stays near 1.
+    Nurbs {
+        /// The curve, oriented the way the polar angle increases.
+        curve: Nurbs,
+        /// The lead parameter p for an axial section.
+        axial: Option<f64>,
+        /// Its length (in its own section), mm.
+        length: f64,
+    },
     /// A convex edge: the point stays at `at` while the tangent angle turns from `from` to `to`
     /// (radians, `to > from`). Its parameter length is the turning angle, in radians.
     Corner {
@@ -77,7 +112,20 @@ impl Piece {
         match self {
             Piece::Spline(s) => s.length(),
             Piece::Axial { piece, .. } => piece.length(),
+            Piece::Line { from, to } => from.distance(*to),
+            Piece::Arc { radius, sweep, .. } => radius * sweep.abs(),
+            Piece::Nurbs { length, .. } => *length,
             Piece::Corner { from, to, .. } => to - from,
+        }
+    }
+
+    /// A NURBS piece of the transverse section, or of an axial one for lead parameter `p`.
+    pub fn nurbs(curve: Nurbs, axial: Option<f64>) -> Piece {
+        let length = curve.length();
+        Piece::Nurbs {
+            curve,
+            axial,
+            length,
         }
     }
 
@@ -96,14 +144,41 @@ impl Piece {
                 if *reversed {
                     t = -t;
                 }
-                let (rho, z) = (a.x, a.y);
-                let (phi, dphi, ddphi) = (-z / p, -t.y / p, -d2a.y / p);
-                let e = Complex64::from_polar(1.0, phi);
-                let pos = e * rho;
-                let d1 = e * Complex64::new(t.x, rho * dphi);
-                let d2 =
-                    e * Complex64::new(d2a.x - rho * dphi * dphi, 2.0 * t.x * dphi + rho * ddphi);
-                (c2v(pos), c2v(d1), c2v(d2))
+                axial_seen(a, t, d2a, *p)
+            }
+            Piece::Line { from, to } => {
+                let t = (*to - *from).normalize_or_zero();
+                let s = s.max(0.0).min(from.distance(*to));
+                (*from + t * s, t, DVec2::ZERO)
+            }
+            Piece::Arc {
+                centre,
+                radius,
+                start,
+                sweep,
+            } => {
+                let sense = sweep.signum();
+                let s = s.max(0.0).min(radius * sweep.abs());
+                let radial = DVec2::from_angle(start + sense * s / radius);
+                (
+                    *centre + *radius * radial,
+                    sense * radial.perp(),
+                    -radial / *radius,
+                )
+            }
+            Piece::Nurbs {
+                curve,
+                axial,
+                length,
+            } => {
+                let (a, b) = curve.domain();
+                let scale = (b - a) / length;
+                let (c, d1, d2) = curve.eval(a + s * scale);
+                let (d1, d2) = (d1 * scale, d2 * scale * scale);
+                match axial {
+                    Some(p) => axial_seen(c, d1, d2, *p),
+                    None => (c, d1, d2),
+                }
             }
             Piece::Corner { at, from, to } => {
                 let angle = from + s.clamp(0.0, to - from);
@@ -111,6 +186,19 @@ impl Piece {
             }
         }
     }
+}
+
+/// An axial-section point `a = (ρ, z)` with its derivatives along some parameter, seen in the
+/// transverse plane for lead parameter `p`: radius ρ at polar angle φ = −z / p, so
+/// `P = ρ e^{iφ}`, `P′ = e^{iφ}(ρ′ + iρφ′)`, `P″ = e^{iφ}(ρ″ − ρφ′² + i(2ρ′φ′ + ρφ″))`.
+fn axial_seen(a: DVec2, d1: DVec2, d2: DVec2, p: f64) -> (DVec2, DVec2, DVec2) {
+    let (rho, z) = (a.x, a.y);
+    let (phi, dphi, ddphi) = (-z / p, -d1.y / p, -d2.y / p);
+    let e = Complex64::from_polar(1.0, phi);
+    let pos = e * rho;
+    let first = e * Complex64::new(d1.x, rho * dphi);
+    let second = e * Complex64::new(d2.x - rho * dphi * dphi, 2.0 * d1.x * dphi + rho * ddphi);
+    (c2v(pos), c2v(first), c2v(second))
 }
 
 fn c2v(c: Complex64) -> DVec2 {
@@ -211,6 +299,14 @@ impl Profile {
             .into_iter()
             .map(|piece| Piece::Axial { piece, p, reversed })
             .collect();
+        Profile::joined(smooth, period)
+    }
+
+    /// A profile from smooth pieces that follow each other in order of increasing polar angle
+    /// over one period: a [`Piece::Corner`] is put at every sharp convex join (the last piece
+    /// joins the first turned by the period); sharp concave joins are kept as they are and
+    /// reported by [`Profile::concave_stretches`].
+    pub fn joined(smooth: Vec<Piece>, period: f64) -> Profile {
         let mut pieces = Vec::with_capacity(smooth.len() * 2);
         let n = smooth.len();
         for (i, piece) in smooth.iter().enumerate() {
@@ -375,6 +471,14 @@ impl Profile {
                 for span in spline.knots().windows(2) {
                     cuts.push(offset + span[0]);
                     cuts.push(offset + (span[0] + span[1]) / 2.0);
+                }
+            }
+            if let Piece::Nurbs { curve, length, .. } = piece {
+                let (a, b) = curve.domain();
+                let to_s = |t: f64| (t - a) / (b - a) * length;
+                for span in curve.breaks().windows(2) {
+                    cuts.push(offset + to_s(span[0]));
+                    cuts.push(offset + to_s((span[0] + span[1]) / 2.0));
                 }
             }
         }
