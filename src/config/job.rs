@@ -5,6 +5,7 @@
 //! `examples/*/job.toml` for complete jobs.
 
 use crate::geometry::linkage::{Ring, Whirling};
+use crate::geometry::profile::drawing::{self, DrawingError};
 use crate::geometry::profile::points::{self, PointsError, Section};
 use crate::geometry::profile::standard::{
     AcmeGeneralPurpose, BallArc, IsoTrapezoidal, StandardError, StandardProfile,
@@ -108,6 +109,13 @@ pub struct ProfileSpec {
     pub fit_tolerance: Option<f64>,
     /// A standard profile instead of points.
     pub standard: Option<StandardKind>,
+    /// A CAD drawing (DXF) of the section instead of points, relative to the job file.
+    pub dxf: Option<PathBuf>,
+    /// The drawing's layer that holds the profile (default: every layer).
+    pub layer: Option<String>,
+    /// The drawing's units (`"mm"`, `"in"`, `"um"`…), overriding its `$INSUNITS`; needed
+    /// when it has none.
+    pub units: Option<String>,
     /// Trapezoidal, Acme: major diameter d, mm.
     pub major_diameter: Option<f64>,
     /// Trapezoidal, Acme: root fillet radius, mm.
@@ -299,6 +307,14 @@ pub enum JobError {
     /// Standard dimensions are wrong.
     #[error("[groove.profile] standard: {0}")]
     Standard(StandardError),
+    /// The drawing gives no profile.
+    #[error("{path}: {error}")]
+    Drawing {
+        /// The drawing file.
+        path: PathBuf,
+        /// What is wrong and where.
+        error: DrawingError,
+    },
 }
 
 /// A standard's dimensions, in the words of its own error (printed whole, not as a
@@ -524,6 +540,14 @@ impl JobFile {
             ("pitch_diameter", spec.pitch_diameter.is_some()),
             ("outer_diameter", spec.outer_diameter.is_some()),
         ];
+        if let Some(file) = &spec.dxf {
+            return self.drawing(dir, file, &standard_keys);
+        }
+        if spec.layer.is_some() || spec.units.is_some() {
+            return Err(JobError::ProfileSpec(
+                "layer and units belong to a drawing: give dxf = \"groove.dxf\"".into(),
+            ));
+        }
         if spec.standard.is_some() && spec.fit_tolerance.is_some() {
             return Err(JobError::ProfileSpec(
                 "fit_tolerance belongs to points: a standard's form is exact".into(),
@@ -584,6 +608,54 @@ impl JobFile {
                 ))
             }
         }
+    }
+
+    /// The profile a drawing (`file`, relative to `dir`) draws.
+    fn drawing(
+        &self,
+        dir: &Path,
+        file: &Path,
+        standard_keys: &[(&str, bool)],
+    ) -> Result<Profile, JobError> {
+        let spec = &self.groove.profile;
+        let others = [
+            ("points", spec.points.is_some()),
+            ("standard", spec.standard.is_some()),
+            ("mirror", spec.mirror.is_some()),
+            ("fit_tolerance", spec.fit_tolerance.is_some()),
+        ];
+        if let Some((key, _)) = others.iter().chain(standard_keys).find(|(_, set)| *set) {
+            return Err(JobError::ProfileSpec(format!(
+                "{key} does not go with dxf: a drawing is exact and gives the whole section"
+            )));
+        }
+        let path = dir.join(file);
+        let bytes = std::fs::read(&path).map_err(|error| JobError::Read {
+            path: path.clone(),
+            error,
+        })?;
+        let drawing_err = |error| JobError::Drawing {
+            path: path.clone(),
+            error,
+        };
+        let units = spec
+            .units
+            .as_deref()
+            .map(drawing::Units::named)
+            .transpose()
+            .map_err(drawing_err)?;
+        let options = drawing::Options {
+            layer: spec.layer.clone(),
+            units,
+            section: match spec.section.unwrap_or(SectionSpec::Transverse) {
+                SectionSpec::Transverse => drawing::Section::Transverse,
+                SectionSpec::Axial => drawing::Section::Axial,
+            },
+            p: self.groove.p(),
+            starts: self.groove.starts,
+        };
+        let parsed = drawing::read(&bytes).map_err(drawing_err)?;
+        drawing::profile(&parsed, &options).map_err(drawing_err)
     }
 
     fn standard(&self, kind: StandardKind) -> Result<StandardProfile, JobError> {

@@ -85,15 +85,16 @@ pub enum Piece {
     },
     /// A NURBS curve of the transverse section (`axial: None`), or of an axial section
     /// (points `(ρ, z)`) seen in the transverse plane for lead parameter `p` (`axial: Some(p)`),
-    /// mapped as [`Piece::Axial`] maps lines and arcs. Parameter = the curve's knot parameter
-    /// scaled to its length, so that the speed along it stays near 1.
+    /// mapped as [`Piece::Axial`] maps lines and arcs. Parameter = arc length in its own
+    /// section, as for lines and arcs: a profile's nodes are spaced along its parameter, so a
+    /// curve drawn as a spline is planned as the same curve drawn otherwise.
     Nurbs {
         /// The curve, oriented the way the polar angle increases.
         curve: Nurbs,
         /// The lead parameter p for an axial section.
         axial: Option<f64>,
-        /// Its length (in its own section), mm.
-        length: f64,
+        /// Its arc length at parameters along it ([`Nurbs::arc_table`]).
+        table: Vec<(f64, f64)>,
     },
     /// A convex edge: the point stays at `at` while the tangent angle turns from `from` to `to`
     /// (radians, `to > from`). Its parameter length is the turning angle, in radians.
@@ -114,18 +115,18 @@ impl Piece {
             Piece::Axial { piece, .. } => piece.length(),
             Piece::Line { from, to } => from.distance(*to),
             Piece::Arc { radius, sweep, .. } => radius * sweep.abs(),
-            Piece::Nurbs { length, .. } => *length,
+            Piece::Nurbs { table, .. } => table.last().map_or(0.0, |&(_, s)| s),
             Piece::Corner { from, to, .. } => to - from,
         }
     }
 
     /// A NURBS piece of the transverse section, or of an axial one for lead parameter `p`.
     pub fn nurbs(curve: Nurbs, axial: Option<f64>) -> Piece {
-        let length = curve.length();
+        let table = curve.arc_table();
         Piece::Nurbs {
             curve,
             axial,
-            length,
+            table,
         }
     }
 
@@ -169,12 +170,13 @@ impl Piece {
             Piece::Nurbs {
                 curve,
                 axial,
-                length,
+                table,
             } => {
-                let (a, b) = curve.domain();
-                let scale = (b - a) / length;
-                let (c, d1, d2) = curve.eval(a + s * scale);
-                let (d1, d2) = (d1 * scale, d2 * scale * scale);
+                // By arc length: dt/ds = 1/|C′|, d²t/ds² = −(C′·C″)/|C′|⁴.
+                let (c, c1, c2) = curve.eval(curve.at_length(table, s));
+                let speed = c1.length();
+                let (dt, ddt) = (1.0 / speed, -c1.dot(c2) / speed.powi(4));
+                let (d1, d2) = (c1 * dt, c2 * dt * dt + c1 * ddt);
                 match axial {
                     Some(p) => axial_seen(c, d1, d2, *p),
                     None => (c, d1, d2),
@@ -473,13 +475,9 @@ impl Profile {
                     cuts.push(offset + (span[0] + span[1]) / 2.0);
                 }
             }
-            if let Piece::Nurbs { curve, length, .. } = piece {
-                let (a, b) = curve.domain();
-                let to_s = |t: f64| (t - a) / (b - a) * length;
-                for span in curve.breaks().windows(2) {
-                    cuts.push(offset + to_s(span[0]));
-                    cuts.push(offset + to_s((span[0] + span[1]) / 2.0));
-                }
+            if let Piece::Nurbs { table, .. } = piece {
+                // The table's rows: eight to a knot span.
+                cuts.extend(table.iter().step_by(4).map(|&(_, s)| offset + s));
             }
         }
         cuts.sort_by(f64::total_cmp);

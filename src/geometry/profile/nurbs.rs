@@ -255,9 +255,14 @@ impl Nurbs {
         (c, c1, c2)
     }
 
-    /// The curve's length to about 10⁻⁹ of itself: Gauss–Legendre quadrature of the speed,
-    /// five nodes on each of eight sub-intervals of every knot span.
+    /// The curve's length to about 10⁻⁹ of itself.
     pub fn length(&self) -> f64 {
+        self.arc_table().last().map_or(0.0, |&(_, s)| s)
+    }
+
+    /// The arc length from `a` to `b` (within one knot span, where the curve is smooth):
+    /// five-point Gauss–Legendre quadrature of the speed.
+    fn arc(&self, a: f64, b: f64) -> f64 {
         const NODES: [(f64, f64); 5] = [
             (0.0, 0.568_888_888_888_888_9),
             (-0.538_469_310_105_683_1, 0.478_628_670_499_366_5),
@@ -265,23 +270,54 @@ impl Nurbs {
             (-0.906_179_845_938_664, 0.236_926_885_056_189_08),
             (0.906_179_845_938_664, 0.236_926_885_056_189_08),
         ];
-        let (a, b) = self.domain();
-        let mut total = 0.0;
-        for w in self.knots.windows(2) {
-            let (lo, hi) = (w[0].max(a), w[1].min(b));
-            if hi <= lo {
-                continue;
-            }
-            let sub = 8;
-            let h = (hi - lo) / sub as f64;
-            for k in 0..sub {
-                let mid = lo + h * (k as f64 + 0.5);
-                for (x, weight) in NODES {
-                    total += weight * h / 2.0 * self.eval(mid + x * h / 2.0).1.length();
-                }
+        let (mid, half) = ((a + b) / 2.0, (b - a) / 2.0);
+        NODES
+            .iter()
+            .map(|(x, w)| w * half * self.eval(mid + x * half).1.length())
+            .sum()
+    }
+
+    /// The arc length along the curve at the bounds of eight equal parts of every knot span:
+    /// `(t, s)` pairs from `(start, 0)` to `(end, length)`, for [`Nurbs::at_length`].
+    pub fn arc_table(&self) -> Vec<(f64, f64)> {
+        const PARTS: usize = 8;
+        let breaks = self.breaks();
+        let mut table = vec![(breaks[0], 0.0)];
+        let mut s = 0.0;
+        for w in breaks.windows(2) {
+            let h = (w[1] - w[0]) / PARTS as f64;
+            for k in 0..PARTS {
+                let (a, b) = (w[0] + h * k as f64, w[0] + h * (k + 1) as f64);
+                s += self.arc(a, b);
+                table.push((if k + 1 == PARTS { w[1] } else { b }, s));
             }
         }
-        total
+        table
+    }
+
+    /// The parameter at arc length `s` from the start, by Newton's method from the table's
+    /// interpolation (`table` from [`Nurbs::arc_table`]).
+    pub fn at_length(&self, table: &[(f64, f64)], s: f64) -> f64 {
+        let i = table
+            .partition_point(|&(_, si)| si <= s)
+            .clamp(1, table.len() - 1);
+        let ((t0, s0), (t1, s1)) = (table[i - 1], table[i]);
+        if s1 <= s0 {
+            return t0;
+        }
+        let mut t = t0 + (t1 - t0) * ((s - s0) / (s1 - s0)).clamp(0.0, 1.0);
+        for _ in 0..8 {
+            let speed = self.eval(t).1.length();
+            if speed <= 0.0 {
+                break;
+            }
+            let step = (self.arc(t0, t) - (s - s0)) / speed;
+            t = (t - step).clamp(t0, t1);
+            if step.abs() <= 1e-14 * (t1 - t0).abs().max(1e-300) {
+                break;
+            }
+        }
+        t
     }
 
     /// The box of the control points, which holds the curve (its convex-hull property).

@@ -302,9 +302,19 @@ pub(super) fn one_period(
         .iter()
         .map(|c| radius(c.shape.at(0.0), section))
         .fold(f64::NEG_INFINITY, f64::max);
-    let candidates: Vec<usize> = (0..n)
+    // In order of phase, so that the period taken does not depend on where the drawing's
+    // outline happens to start: the crest point with the least z, or polar angle from 0.
+    let mut candidates: Vec<usize> = (0..n)
         .filter(|&i| radius(curves[i].shape.at(0.0), section) >= crest - JOIN)
         .collect();
+    let key = |i: &usize| {
+        let ph = phase(curves[*i].shape.at(0.0), section);
+        match section {
+            Section::Transverse => ph.rem_euclid(std::f64::consts::TAU),
+            Section::Axial => ph,
+        }
+    };
+    candidates.sort_by(|a, b| key(a).total_cmp(&key(b)));
     let mut first_error = None;
     for &k in &candidates {
         for forward in [true, false] {
