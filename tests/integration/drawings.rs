@@ -32,7 +32,11 @@ fn trapezoid_job(profile: &str) -> String {
     let text = std::fs::read_to_string(util::example("trapezoidal")).unwrap();
     let start = text.find("[groove.profile]").unwrap();
     let end = text.find("[tool]").unwrap();
-    format!("{}[groove.profile]\n{profile}\n\n{}", &text[..start], &text[end..])
+    format!(
+        "{}[groove.profile]\n{profile}\n\n{}",
+        &text[..start],
+        &text[end..]
+    )
 }
 
 fn load(dir: &Path, name: &str, text: &str) -> Result<Job, String> {
@@ -140,7 +144,12 @@ fn ezdxf_drawings_of_every_entity_kind_plan_as_the_same_geometry() {
     };
     let dir = dir.path();
     let machine = MachineProfile::load(&util::root().join("machine-profiles/sim.toml")).unwrap();
-    let points = load(dir, "points.toml", &eccentric_job("points = \"eccentric.csv\"")).unwrap();
+    let points = load(
+        dir,
+        "points.toml",
+        &eccentric_job("points = \"eccentric.csv\""),
+    )
+    .unwrap();
     let standard = load(
         dir,
         "standard.toml",

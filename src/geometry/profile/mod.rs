@@ -576,6 +576,63 @@ mod tests {
         }
     }
 
+    /// The quarter circle of radius 2 about `centre` from angle 90° to 180°, as a rational
+    /// quadratic NURBS.
+    fn quarter(centre: DVec2) -> Nurbs {
+        Nurbs::new(
+            2,
+            vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+            vec![
+                centre + DVec2::new(0.0, 2.0),
+                centre + DVec2::new(-2.0, 2.0),
+                centre + DVec2::new(-2.0, 0.0),
+            ],
+            vec![1.0, std::f64::consts::FRAC_1_SQRT_2, 1.0],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn a_nurbs_piece_runs_at_unit_speed_with_the_curvature_of_its_curve() {
+        let piece = Piece::nurbs(quarter(DVec2::new(5.0, 1.0)), None);
+        assert!((piece.length() - PI).abs() < 1e-9, "a quarter of 2π·2");
+        for k in 0..=50 {
+            let (pos, d1, d2) = piece.eval(piece.length() * k as f64 / 50.0);
+            let radial = (pos - DVec2::new(5.0, 1.0)) / 2.0;
+            assert!((radial.length() - 1.0).abs() < 1e-12, "on the circle");
+            assert!(
+                (d1.length() - 1.0).abs() < 1e-9,
+                "unit speed: {}",
+                d1.length()
+            );
+            assert!((d2 + radial / 2.0).length() < 1e-8, "d² = −n/r: {d2}");
+        }
+    }
+
+    #[test]
+    fn an_axial_nurbs_piece_is_seen_as_the_same_axial_arc() {
+        let p = 7.0 / TAU;
+        let nurbs = Piece::nurbs(quarter(DVec2::new(20.0, 0.0)), Some(p));
+        let arc = Piece::Axial {
+            piece: AxialPiece::Arc {
+                centre: DVec2::new(20.0, 0.0),
+                radius: 2.0,
+                start: 0.5 * PI,
+                end: PI,
+            },
+            p,
+            reversed: false,
+        };
+        assert!((nurbs.length() - arc.length()).abs() < 1e-9);
+        for k in 0..=50 {
+            let s = arc.length() * k as f64 / 50.0;
+            let (a, b) = (nurbs.eval(s), arc.eval(s));
+            assert!((a.0 - b.0).length() < 1e-9, "{s}: {:?} vs {:?}", a.0, b.0);
+            assert!((a.1 - b.1).length() < 1e-8, "{s}: {:?} vs {:?}", a.1, b.1);
+            assert!((a.2 - b.2).length() < 1e-6, "{s}: {:?} vs {:?}", a.2, b.2);
+        }
+    }
+
     #[test]
     fn crest_edges_become_convex_corners() {
         let prof = Profile::from_axial(arc_groove(20.0, 20.0, 3.0), 10.0 / PI, PI);

@@ -89,7 +89,9 @@ impl Nurbs {
             )));
         }
         if knots[points.len()] <= knots[degree] {
-            return Err(NurbsError::Knots("the valid parameter range is empty".into()));
+            return Err(NurbsError::Knots(
+                "the valid parameter range is empty".into(),
+            ));
         }
         if let Some(index) = points.iter().position(|p| !p.is_finite()) {
             return Err(NurbsError::Point { index });
@@ -355,7 +357,10 @@ pub fn interpolate(
 ) -> Result<Nurbs, NurbsError> {
     let n = points.len();
     if n < 2 {
-        return Err(NurbsError::Degree { degree: 3, points: n });
+        return Err(NurbsError::Degree {
+            degree: 3,
+            points: n,
+        });
     }
     let chords: Vec<f64> = points.windows(2).map(|w| w[0].distance(w[1])).collect();
     let total: f64 = chords.iter().sum();
@@ -363,7 +368,10 @@ pub fn interpolate(
         return Err(NurbsError::Point { index });
     }
     if let Some(i) = chords.iter().position(|&c| c <= 0.0) {
-        return Err(NurbsError::Knots(format!("fit points {i} and {} coincide", i + 1)));
+        return Err(NurbsError::Knots(format!(
+            "fit points {i} and {} coincide",
+            i + 1
+        )));
     }
     let mut u = vec![0.0];
     for c in &chords {
@@ -393,8 +401,8 @@ pub fn interpolate(
     knots.extend_from_slice(&u[1..n - 1]);
     knots.extend_from_slice(&[1.0; 4]);
     let m = n + 2; // control points
-    // The collocation rows are banded (a cubic's point involves four control points), and
-    // B-spline collocation matrices need no pivoting (de Boor): elimination within the band.
+                   // The collocation rows are banded (a cubic's point involves four control points), and
+                   // B-spline collocation matrices need no pivoting (de Boor): elimination within the band.
     let width = 4;
     let mut rows: Vec<(usize, Vec<f64>, DVec2)> = Vec::with_capacity(m);
     rows.push((0, vec![1.0], points[0]));
@@ -423,7 +431,9 @@ pub fn interpolate(
     for i in 0..m {
         let pivot = band[i][width];
         if pivot.abs() < 1e-300 {
-            return Err(NurbsError::Knots("the fit points give a singular system".into()));
+            return Err(NurbsError::Knots(
+                "the fit points give a singular system".into(),
+            ));
         }
         for r in i + 1..(i + width + 1).min(m) {
             let factor = band[r][i + width - r] / pivot;

@@ -249,10 +249,7 @@ pub(super) fn one_period(
 ) -> Result<Vec<Curve>, DrawingError> {
     let Outline { mut curves, closed } = outline;
     let total_reversed = {
-        let total: f64 = curves
-            .iter()
-            .map(|c| signed_advance(c, section))
-            .sum();
+        let total: f64 = curves.iter().map(|c| signed_advance(c, section)).sum();
         total < 0.0
     };
     if !closed {
@@ -272,8 +269,7 @@ pub(super) fn one_period(
         let end = last.shape.at(1.0);
         let distance = end.distance(shifted(start, period, section));
         if distance > JOIN {
-            let same_radius =
-                (radius(end, section) - radius(start, section)).abs() <= JOIN;
+            let same_radius = (radius(end, section) - radius(start, section)).abs() <= JOIN;
             return Err(if same_radius {
                 DrawingError::NotOnePeriod {
                     first: first.entity.clone(),
@@ -466,10 +462,9 @@ pub(super) fn pieces(curves: Vec<Curve>, options: &Options) -> Profile {
                             start,
                             end: start + sweep,
                         }),
-                        Shape::Nurbs(curve) => Piece::nurbs(
-                            if reversed { curve.reversed() } else { curve },
-                            Some(p),
-                        ),
+                        Shape::Nurbs(curve) => {
+                            Piece::nurbs(if reversed { curve.reversed() } else { curve }, Some(p))
+                        }
                     }
                 })
                 .collect()

@@ -145,7 +145,10 @@ impl Shape {
                         let f1 = (f + h).min(1.0);
                         (self.at(f) - q).dot((self.at(f1) - self.at(f0)) / (f1 - f0))
                     };
-                    let (g0, g1) = (g(f), (g((f + h).min(1.0)) - g((f - h).max(0.0))) / (2.0 * h));
+                    let (g0, g1) = (
+                        g(f),
+                        (g((f + h).min(1.0)) - g((f - h).max(0.0))) / (2.0 * h),
+                    );
                     if g1.abs() < 1e-300 {
                         break;
                     }
@@ -318,7 +321,9 @@ fn of_entity(entity: &Entity) -> Result<Vec<Curve>, DrawingError> {
         EntityType::Arc(arc) => {
             flat(&arc.normal)?;
             let start = arc.start_angle.to_radians();
-            let mut sweep = (arc.end_angle - arc.start_angle).rem_euclid(360.0).to_radians();
+            let mut sweep = (arc.end_angle - arc.start_angle)
+                .rem_euclid(360.0)
+                .to_radians();
             if sweep == 0.0 {
                 sweep = TAU;
             }

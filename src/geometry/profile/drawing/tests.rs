@@ -3,8 +3,8 @@
 //! ezdxf, an independent writer, makes.
 
 use super::*;
-use crate::geometry::profile::Piece;
 use crate::geometry::profile::standard::{AxialPiece, IsoTrapezoidal};
+use crate::geometry::profile::Piece;
 use dxf::entities::{Arc, Entity, EntityType, Line, LwPolyline, Text};
 use dxf::enums::{AcadVersion, Units as DxfUnits};
 use dxf::{LwPolylineVertex, Point};
@@ -27,7 +27,10 @@ fn drawing(entities: Vec<EntityType>, units: DxfUnits) -> Drawing {
 }
 
 fn line(a: (f64, f64), b: (f64, f64)) -> EntityType {
-    EntityType::Line(Line::new(Point::new(a.0, a.1, 0.0), Point::new(b.0, b.1, 0.0)))
+    EntityType::Line(Line::new(
+        Point::new(a.0, a.1, 0.0),
+        Point::new(b.0, b.1, 0.0),
+    ))
 }
 
 fn options(section: Section, p: f64, starts: u32) -> Options {
@@ -80,7 +83,10 @@ fn a_transverse_outline_of_one_period_keeps_its_arc_and_lines() {
     // The deepest point is the flanks' corner at 8 mm, which the range's samples find to
     // within their spacing.
     let (lo, hi) = profile.radius_range();
-    assert!((lo - 8.0).abs() < 1e-2 && (hi - 10.0).abs() < 1e-9, "{lo} {hi}");
+    assert!(
+        (lo - 8.0).abs() < 1e-2 && (hi - 10.0).abs() < 1e-9,
+        "{lo} {hi}"
+    );
 }
 
 /// ISO 2904 Tr 40×7 drawn as an axial section, one pitch: its pieces as a polyline along X.
@@ -114,7 +120,12 @@ fn lwpolyline(vertices: &[(f64, f64)], closed: bool) -> EntityType {
 }
 
 fn assert_same(a: &Profile, b: &Profile) {
-    assert!((a.length() - b.length()).abs() < 1e-9, "{} {}", a.length(), b.length());
+    assert!(
+        (a.length() - b.length()).abs() < 1e-9,
+        "{} {}",
+        a.length(),
+        b.length()
+    );
     for k in 0..=2000 {
         let u = a.length() * k as f64 / 2000.0;
         let (pa, da, _) = a.derivatives(u);
@@ -188,7 +199,10 @@ fn inches_are_scaled_to_mm_and_a_job_can_override_the_units() {
     let p = 7.0 / TAU;
     let standard = Profile::from_axial(pieces, p, TAU);
     let d = drawing(vec![lwpolyline(&inch, false)], DxfUnits::Inches);
-    assert_same(&profile(&d, &options(Section::Axial, p, 1)).unwrap(), &standard);
+    assert_same(
+        &profile(&d, &options(Section::Axial, p, 1)).unwrap(),
+        &standard,
+    );
     let unitless = drawing(vec![lwpolyline(&inch, false)], DxfUnits::Unitless);
     assert_eq!(
         profile(&unitless, &options(Section::Axial, p, 1)).unwrap_err(),
@@ -202,7 +216,9 @@ fn inches_are_scaled_to_mm_and_a_job_can_override_the_units() {
         profile(&km, &options(Section::Axial, p, 1)).unwrap_err(),
         DrawingError::WrongUnits { code: 7 }
     );
-    assert!(matches!(Units::named("furlong"), Err(DrawingError::UnknownUnits(u)) if u == "furlong"));
+    assert!(
+        matches!(Units::named("furlong"), Err(DrawingError::UnknownUnits(u)) if u == "furlong")
+    );
 }
 
 fn refusal(entities: Vec<EntityType>) -> DrawingError {
@@ -221,7 +237,10 @@ fn a_gap_names_both_entities_and_the_distance() {
         panic!("{e}")
     };
     assert!((distance - 0.01).abs() < 1e-9, "{e}");
-    assert!(a.kind == "LINE" && b.kind == "LINE" && a.handle != b.handle, "{e}");
+    assert!(
+        a.kind == "LINE" && b.kind == "LINE" && a.handle != b.handle,
+        "{e}"
+    );
     assert!(e.to_string().contains("on layer \"GROOVE\""), "{e}");
 }
 
@@ -262,7 +281,12 @@ fn an_outline_that_is_not_one_period_is_refused() {
     assert!(matches!(refusal(g), DrawingError::Open { .. }));
     // One and a half periods at the crest radius: the crest arc drawn on to 240°.
     let mut g = v_groove();
-    g.push(EntityType::Arc(Arc::new(Point::origin(), 10.0, 180.0, 270.0)));
+    g.push(EntityType::Arc(Arc::new(
+        Point::origin(),
+        10.0,
+        180.0,
+        270.0,
+    )));
     let e = refusal(g);
     assert!(
         matches!(e, DrawingError::NotOnePeriod { span, .. } if (span - 1.5 * PI).abs() < 1e-9),
@@ -281,7 +305,10 @@ fn an_outline_that_turns_back_is_refused_naming_the_entity() {
     g[2] = line(at(8.0, 165.0), at(9.0, 160.0));
     g.push(line(at(9.0, 160.0), at(10.0, 180.0)));
     let e = refusal(g);
-    assert!(matches!(&e, DrawingError::Backwards { entity, .. } if entity.kind == "LINE"), "{e}");
+    assert!(
+        matches!(&e, DrawingError::Backwards { entity, .. } if entity.kind == "LINE"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -300,7 +327,10 @@ fn no_entity_on_the_layer_and_entities_of_other_kinds_are_refused() {
     let mut g = v_groove();
     g.push(EntityType::Text(Text::default()));
     let e = refusal(g);
-    assert!(matches!(&e, DrawingError::Unsupported { entity, .. } if entity.kind == "TEXT"), "{e}");
+    assert!(
+        matches!(&e, DrawingError::Unsupported { entity, .. } if entity.kind == "TEXT"),
+        "{e}"
+    );
 }
 
 #[test]
