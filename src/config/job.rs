@@ -312,8 +312,8 @@ pub enum JobError {
     Drawing {
         /// The drawing file.
         path: PathBuf,
-        /// What is wrong and where.
-        error: DrawingError,
+        /// What is wrong and where (boxed: it names entities, and a job's error stays small).
+        error: Box<DrawingError>,
     },
 }
 
@@ -636,7 +636,7 @@ impl JobFile {
         })?;
         let drawing_err = |error| JobError::Drawing {
             path: path.clone(),
-            error,
+            error: Box::new(error),
         };
         let units = spec
             .units

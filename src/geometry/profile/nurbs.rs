@@ -224,9 +224,10 @@ impl Nurbs {
                 std::mem::swap(&mut s1, &mut s2);
             }
         }
+        // The k-th derivatives carry the factor p!/(p − k)!.
         let mut factor = p as f64;
-        for k in 1..=nd {
-            for value in ders[k].iter_mut() {
+        for (k, row) in ders.iter_mut().enumerate().take(nd + 1).skip(1) {
+            for value in row.iter_mut() {
                 *value *= factor;
             }
             factor *= (p - k) as f64;
@@ -246,9 +247,9 @@ impl Nurbs {
         for j in 0..=self.degree {
             let k = i - self.degree + j;
             let (w, pt) = (self.weights[k], self.points[k]);
-            for d in 0..3 {
-                num[d] += ders[d][j] * w * pt;
-                den[d] += ders[d][j] * w;
+            for (d, row) in ders.iter().enumerate() {
+                num[d] += row[j] * w * pt;
+                den[d] += row[j] * w;
             }
         }
         let c = num[0] / den[0];

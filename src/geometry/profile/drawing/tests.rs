@@ -106,15 +106,17 @@ fn trapezoid_vertices(pieces: &[AxialPiece]) -> Vec<(f64, f64)> {
 }
 
 fn lwpolyline(vertices: &[(f64, f64)], closed: bool) -> EntityType {
-    let mut poly = LwPolyline::default();
-    poly.vertices = vertices
-        .iter()
-        .map(|&(x, y)| LwPolylineVertex {
-            x,
-            y,
-            ..Default::default()
-        })
-        .collect();
+    let mut poly = LwPolyline {
+        vertices: vertices
+            .iter()
+            .map(|&(x, y)| LwPolylineVertex {
+                x,
+                y,
+                ..Default::default()
+            })
+            .collect(),
+        ..Default::default()
+    };
     poly.set_is_closed(closed);
     EntityType::LwPolyline(poly)
 }
