@@ -22,7 +22,7 @@ fn the_examples_plan_on_the_modbus_and_can_machines() {
         .filter(|path| path.exists())
         .collect();
     jobs.sort();
-    assert_eq!(jobs.len(), 4, "{jobs:?}");
+    assert_eq!(jobs.len(), 5, "{jobs:?}");
     let plc = MachineProfile::load(&root.join("machine-profiles/modbus-plc.toml")).unwrap();
     let can = MachineProfile::load(&root.join("machine-profiles/canopen-drives.toml")).unwrap();
     let drives = can
