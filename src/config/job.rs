@@ -5,6 +5,7 @@
 //! `examples/*/job.toml` for complete jobs.
 
 use crate::geometry::linkage::{Ring, Whirling};
+use crate::geometry::profile::drawing::{self, DrawingError};
 use crate::geometry::profile::points::{self, PointsError, Section};
 use crate::geometry::profile::standard::designation::{self, Designation, DesignationError};
 use crate::geometry::profile::standard::{
@@ -168,6 +169,13 @@ pub struct ProfileSpec {
     /// `1/2-10 ACME-2G`), instead of points or `standard`: the form comes from the standard's
     /// tables, and the lead, starts and hand from the designation.
     pub designation: Option<String>,
+    /// A CAD drawing (DXF) of the section instead of points, relative to the job file.
+    pub dxf: Option<PathBuf>,
+    /// The drawing's layer that holds the profile (default: every layer).
+    pub layer: Option<String>,
+    /// The drawing's units (`"mm"`, `"in"`, `"um"`…), overriding its `$INSUNITS`; needed
+    /// when it has none.
+    pub units: Option<String>,
     /// Trapezoidal, Acme: major diameter d, mm.
     pub major_diameter: Option<f64>,
     /// Trapezoidal, Acme: root fillet radius, mm.
@@ -400,6 +408,14 @@ pub enum JobError {
         designation: String,
         /// The designation's value.
         given: String,
+    },
+    /// The drawing gives no profile.
+    #[error("{path}: {error}")]
+    Drawing {
+        /// The drawing file.
+        path: PathBuf,
+        /// What is wrong and where (boxed: it names entities, and a job's error stays small).
+        error: Box<DrawingError>,
     },
 }
 
@@ -798,6 +814,14 @@ impl JobFile {
         if let Some(designation) = &self.designation {
             return self.designated(designation);
         }
+        if let Some(file) = &spec.dxf {
+            return self.drawing(dir, file, &standard_keys);
+        }
+        if spec.layer.is_some() || spec.units.is_some() {
+            return Err(JobError::ProfileSpec(
+                "layer and units belong to a drawing: give dxf = \"groove.dxf\"".into(),
+            ));
+        }
         if spec.standard.is_some() && spec.fit_tolerance.is_some() {
             return Err(JobError::ProfileSpec(
                 "fit_tolerance belongs to points: a standard's form is exact".into(),
@@ -876,6 +900,9 @@ impl JobFile {
         let others = [
             ("points", spec.points.is_some()),
             ("standard", spec.standard.is_some()),
+            ("dxf", spec.dxf.is_some()),
+            ("layer", spec.layer.is_some()),
+            ("units", spec.units.is_some()),
             ("section", spec.section.is_some()),
             ("mirror", spec.mirror.is_some()),
             ("fit_tolerance", spec.fit_tolerance.is_some()),
@@ -908,6 +935,61 @@ impl JobFile {
             self.groove.period(),
             material,
         ))
+    }
+
+    /// The profile a drawing (`file`, relative to `dir`) draws.
+    fn drawing(
+        &self,
+        dir: &Path,
+        file: &Path,
+        standard_keys: &[(&str, bool)],
+    ) -> Result<Profile, JobError> {
+        let spec = &self.groove.profile;
+        let others = [
+            ("points", spec.points.is_some()),
+            ("standard", spec.standard.is_some()),
+            ("mirror", spec.mirror.is_some()),
+            ("fit_tolerance", spec.fit_tolerance.is_some()),
+        ];
+        if let Some((key, _)) = others.iter().chain(standard_keys).find(|(_, set)| *set) {
+            return Err(JobError::ProfileSpec(format!(
+                "{key} does not go with dxf: a drawing is exact and gives the whole section"
+            )));
+        }
+        if self.groove.material() == Material::Outside {
+            return Err(JobError::ProfileSpec(
+                "a drawing is read as a screw's section (the groove below the crest line): \
+                 give a nut's axial section as points (section = \"axial\")"
+                    .into(),
+            ));
+        }
+        let path = dir.join(file);
+        let bytes = std::fs::read(&path).map_err(|error| JobError::Read {
+            path: path.clone(),
+            error,
+        })?;
+        let drawing_err = |error| JobError::Drawing {
+            path: path.clone(),
+            error: Box::new(error),
+        };
+        let units = spec
+            .units
+            .as_deref()
+            .map(drawing::Units::named)
+            .transpose()
+            .map_err(drawing_err)?;
+        let options = drawing::Options {
+            layer: spec.layer.clone(),
+            units,
+            section: match spec.section.unwrap_or(SectionSpec::Transverse) {
+                SectionSpec::Transverse => drawing::Section::Transverse,
+                SectionSpec::Axial => drawing::Section::Axial,
+            },
+            p: self.groove.p(),
+            starts: self.groove.starts,
+        };
+        let parsed = drawing::read(&bytes).map_err(drawing_err)?;
+        drawing::profile(&parsed, &options).map_err(drawing_err)
     }
 
     fn standard(&self, kind: StandardKind) -> Result<StandardProfile, JobError> {

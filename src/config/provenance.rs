@@ -338,12 +338,14 @@ fn decode(key: &str, (line, value): (usize, String)) -> Result<String, Provenanc
     String::from_utf8(out).map_err(|_| bad("its %XX bytes are not UTF-8"))
 }
 
-/// The profile points file the job text `job` names (`[groove.profile] points`), as it
-/// names it (relative to the job's folder); `None` if it names none or is not TOML.
+/// The profile file the job text `job` names: its points (`[groove.profile] points`) or its
+/// drawing (`dxf`), which a program is planned from as much as from the job, as it names it
+/// (relative to the job's folder); `None` if it names none or is not TOML.
 pub fn points_named(job: &str) -> Option<String> {
     let table: toml::Table = toml::from_str(job).ok()?;
-    let points = table.get("groove")?.get("profile")?.get("points")?;
-    points.as_str().map(str::to_owned)
+    let profile = table.get("groove")?.get("profile")?;
+    let file = profile.get("points").or_else(|| profile.get("dxf"))?;
+    file.as_str().map(str::to_owned)
 }
 
 /// SHA-256 of `bytes`, lower-case hex: the one hash of the files a program is planned from
@@ -465,6 +467,14 @@ mod tests {
             Provenance::from_fields(lines(&half)),
             Err(ProvenanceError::Missing("points-sha256"))
         );
+    }
+
+    #[test]
+    fn a_jobs_drawing_is_its_profile_file_as_points_are() {
+        let job = |key: &str| format!("[groove.profile]\n{key} = \"groove.file\"\n");
+        assert_eq!(points_named(&job("points")).as_deref(), Some("groove.file"));
+        assert_eq!(points_named(&job("dxf")).as_deref(), Some("groove.file"));
+        assert_eq!(points_named(&job("standard")), None);
     }
 
     #[test]

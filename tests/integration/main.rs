@@ -6,6 +6,7 @@ mod can_session;
 mod can_wire;
 mod cli;
 mod control;
+mod drawings;
 mod dry_run;
 mod fastest;
 mod faults_fieldbus;

@@ -6,13 +6,17 @@
 //! - sampled points, fitted by a periodic cubic spline ([`points`], [`spline`]), or
 //! - the exact axial section of a standard thread ([`standard`]), turned into the transverse
 //!   section by kinematics.md's rule: the axial point `(ρ, z)` is the transverse point at radius
-//!   `ρ` and polar angle `−z / p`.
+//!   `ρ` and polar angle `−z / p`, or
+//! - a CAD drawing ([`drawing`]): its lines, arcs and splines kept as the exact curves they are
+//!   ([`Piece::Line`], [`Piece::Arc`], [`Piece::Nurbs`]), in either section.
 //!
 //! Convex corners (a crest edge of a standard thread) are kept sharp: they become a
 //! [`Piece::Corner`] along which the point stays put and the tangent turns, so the ring rolls
 //! its nose around the edge. A concave corner cannot be cut by a nose of finite radius and is
 //! reported by [`Profile::concave_stretches`].
 
+pub mod drawing;
+pub mod nurbs;
 pub mod points;
 pub mod smoothing;
 pub mod spline;
@@ -22,6 +26,7 @@ pub(crate) mod testing;
 
 use glam::{DVec2, DVec3};
 use num_complex::Complex64;
+use nurbs::Nurbs;
 use spline::Spline;
 use standard::AxialPiece;
 use std::f64::consts::PI;
@@ -93,6 +98,37 @@ pub enum Piece {
         /// Whether the piece is traversed from its end to its start.
         reversed: bool,
     },
+    /// A straight line of the transverse section; parameter = length.
+    Line {
+        /// Start point.
+        from: DVec2,
+        /// End point.
+        to: DVec2,
+    },
+    /// A circular arc of the transverse section; parameter = arc length.
+    Arc {
+        /// Centre.
+        centre: DVec2,
+        /// Radius, mm.
+        radius: f64,
+        /// Polar angle of the start point about the centre, radians.
+        start: f64,
+        /// Angle swept, radians: positive counter-clockwise.
+        sweep: f64,
+    },
+    /// A NURBS curve of the transverse section (`axial: None`), or of an axial section
+    /// (points `(ρ, z)`) seen in the transverse plane for lead parameter `p` (`axial: Some(p)`),
+    /// mapped as [`Piece::Axial`] maps lines and arcs. Parameter = arc length in its own
+    /// section, as for lines and arcs: a profile's nodes are spaced along its parameter, so a
+    /// curve drawn as a spline is planned as the same curve drawn otherwise.
+    Nurbs {
+        /// The curve, oriented the way the polar angle increases.
+        curve: Nurbs,
+        /// The lead parameter p for an axial section.
+        axial: Option<f64>,
+        /// Its arc length at parameters along it ([`Nurbs::arc_table`]).
+        table: Vec<(f64, f64)>,
+    },
     /// A convex edge: the point stays at `at` while the tangent angle turns from `from` to `to`
     /// (radians; `to > from` where the material lies inside, `to < from` where it lies
     /// outside, as a nut's crest edge turns the tangent clockwise). Its parameter length is
@@ -112,7 +148,20 @@ impl Piece {
         match self {
             Piece::Spline(s) => s.length(),
             Piece::Axial { piece, .. } => piece.length(),
+            Piece::Line { from, to } => from.distance(*to),
+            Piece::Arc { radius, sweep, .. } => radius * sweep.abs(),
+            Piece::Nurbs { table, .. } => table.last().map_or(0.0, |&(_, s)| s),
             Piece::Corner { from, to, .. } => (to - from).abs(),
+        }
+    }
+
+    /// A NURBS piece of the transverse section, or of an axial one for lead parameter `p`.
+    pub fn nurbs(curve: Nurbs, axial: Option<f64>) -> Piece {
+        let table = curve.arc_table();
+        Piece::Nurbs {
+            curve,
+            axial,
+            table,
         }
     }
 
@@ -131,14 +180,42 @@ impl Piece {
                 if *reversed {
                     t = -t;
                 }
-                let (rho, z) = (a.x, a.y);
-                let (phi, dphi, ddphi) = (-z / p, -t.y / p, -d2a.y / p);
-                let e = Complex64::from_polar(1.0, phi);
-                let pos = e * rho;
-                let d1 = e * Complex64::new(t.x, rho * dphi);
-                let d2 =
-                    e * Complex64::new(d2a.x - rho * dphi * dphi, 2.0 * t.x * dphi + rho * ddphi);
-                (c2v(pos), c2v(d1), c2v(d2))
+                axial_seen(a, t, d2a, *p)
+            }
+            Piece::Line { from, to } => {
+                let t = (*to - *from).normalize_or_zero();
+                let s = s.max(0.0).min(from.distance(*to));
+                (*from + t * s, t, DVec2::ZERO)
+            }
+            Piece::Arc {
+                centre,
+                radius,
+                start,
+                sweep,
+            } => {
+                let sense = sweep.signum();
+                let s = s.max(0.0).min(radius * sweep.abs());
+                let radial = DVec2::from_angle(start + sense * s / radius);
+                (
+                    *centre + *radius * radial,
+                    sense * radial.perp(),
+                    -radial / *radius,
+                )
+            }
+            Piece::Nurbs {
+                curve,
+                axial,
+                table,
+            } => {
+                // By arc length: dt/ds = 1/|C′|, d²t/ds² = −(C′·C″)/|C′|⁴.
+                let (c, c1, c2) = curve.eval(curve.at_length(table, s));
+                let speed = c1.length();
+                let (dt, ddt) = (1.0 / speed, -c1.dot(c2) / speed.powi(4));
+                let (d1, d2) = (c1 * dt, c2 * dt * dt + c1 * ddt);
+                match axial {
+                    Some(p) => axial_seen(c, d1, d2, *p),
+                    None => (c, d1, d2),
+                }
             }
             Piece::Corner { at, from, to } => {
                 let angle = from + (to - from).signum() * s.clamp(0.0, (to - from).abs());
@@ -155,6 +232,19 @@ impl Piece {
 /// wrong way.)
 fn turning(a: DVec2, b: DVec2) -> f64 {
     a.perp_dot(b).atan2(a.dot(b))
+}
+
+/// An axial-section point `a = (ρ, z)` with its derivatives along some parameter, seen in the
+/// transverse plane for lead parameter `p`: radius ρ at polar angle φ = −z / p, so
+/// `P = ρ e^{iφ}`, `P′ = e^{iφ}(ρ′ + iρφ′)`, `P″ = e^{iφ}(ρ″ − ρφ′² + i(2ρ′φ′ + ρφ″))`.
+fn axial_seen(a: DVec2, d1: DVec2, d2: DVec2, p: f64) -> (DVec2, DVec2, DVec2) {
+    let (rho, z) = (a.x, a.y);
+    let (phi, dphi, ddphi) = (-z / p, -d1.y / p, -d2.y / p);
+    let e = Complex64::from_polar(1.0, phi);
+    let pos = e * rho;
+    let first = e * Complex64::new(d1.x, rho * dphi);
+    let second = e * Complex64::new(d2.x - rho * dphi * dphi, 2.0 * d1.x * dphi + rho * ddphi);
+    (c2v(pos), c2v(first), c2v(second))
 }
 
 fn c2v(c: Complex64) -> DVec2 {
@@ -288,6 +378,15 @@ impl Profile {
             .into_iter()
             .map(|piece| Piece::Axial { piece, p, reversed })
             .collect();
+        Profile::joined(smooth, period, material)
+    }
+
+    /// A profile from smooth pieces that follow each other in order of increasing polar angle
+    /// over one period: a [`Piece::Corner`] is put at every sharp convex join (the last piece
+    /// joins the first turned by the period); sharp concave joins are kept as they are and
+    /// reported by [`Profile::concave_stretches`]. Convex and concave are seen from
+    /// `material`'s side.
+    pub fn joined(smooth: Vec<Piece>, period: f64, material: Material) -> Profile {
         let mut pieces = Vec::with_capacity(smooth.len() * 2);
         let n = smooth.len();
         for (i, piece) in smooth.iter().enumerate() {
@@ -454,6 +553,10 @@ impl Profile {
                     cuts.push(offset + (span[0] + span[1]) / 2.0);
                 }
             }
+            if let Piece::Nurbs { table, .. } = piece {
+                // The table's rows: eight to a knot span.
+                cuts.extend(table.iter().step_by(4).map(|&(_, s)| offset + s));
+            }
         }
         cuts.sort_by(f64::total_cmp);
         cuts.windows(2)
@@ -548,6 +651,63 @@ mod tests {
                     "ρ {rho} vs {expected} at z {zz}"
                 );
             }
+        }
+    }
+
+    /// The quarter circle of radius 2 about `centre` from angle 90° to 180°, as a rational
+    /// quadratic NURBS.
+    fn quarter(centre: DVec2) -> Nurbs {
+        Nurbs::new(
+            2,
+            vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+            vec![
+                centre + DVec2::new(0.0, 2.0),
+                centre + DVec2::new(-2.0, 2.0),
+                centre + DVec2::new(-2.0, 0.0),
+            ],
+            vec![1.0, std::f64::consts::FRAC_1_SQRT_2, 1.0],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn a_nurbs_piece_runs_at_unit_speed_with_the_curvature_of_its_curve() {
+        let piece = Piece::nurbs(quarter(DVec2::new(5.0, 1.0)), None);
+        assert!((piece.length() - PI).abs() < 1e-9, "a quarter of 2π·2");
+        for k in 0..=50 {
+            let (pos, d1, d2) = piece.eval(piece.length() * k as f64 / 50.0);
+            let radial = (pos - DVec2::new(5.0, 1.0)) / 2.0;
+            assert!((radial.length() - 1.0).abs() < 1e-12, "on the circle");
+            assert!(
+                (d1.length() - 1.0).abs() < 1e-9,
+                "unit speed: {}",
+                d1.length()
+            );
+            assert!((d2 + radial / 2.0).length() < 1e-8, "d² = −n/r: {d2}");
+        }
+    }
+
+    #[test]
+    fn an_axial_nurbs_piece_is_seen_as_the_same_axial_arc() {
+        let p = 7.0 / TAU;
+        let nurbs = Piece::nurbs(quarter(DVec2::new(20.0, 0.0)), Some(p));
+        let arc = Piece::Axial {
+            piece: AxialPiece::Arc {
+                centre: DVec2::new(20.0, 0.0),
+                radius: 2.0,
+                start: 0.5 * PI,
+                end: PI,
+            },
+            p,
+            reversed: false,
+        };
+        assert!((nurbs.length() - arc.length()).abs() < 1e-9);
+        for k in 0..=50 {
+            let s = arc.length() * k as f64 / 50.0;
+            let (a, b) = (nurbs.eval(s), arc.eval(s));
+            assert!((a.0 - b.0).length() < 1e-9, "{s}: {:?} vs {:?}", a.0, b.0);
+            assert!((a.1 - b.1).length() < 1e-8, "{s}: {:?} vs {:?}", a.1, b.1);
+            assert!((a.2 - b.2).length() < 1e-6, "{s}: {:?} vs {:?}", a.2, b.2);
         }
     }
 
