@@ -30,6 +30,9 @@ pub struct Job {
     pub cut: Cut,
     /// The groove's transverse profile, validated.
     pub profile: Profile,
+    /// The standard form the profile was built from, where the job names one: its
+    /// dimensions and source are what `whirl profile` shows.
+    pub form: Option<StandardProfile>,
 }
 
 /// The job file as written.
@@ -338,6 +341,12 @@ impl Job {
                 why,
             });
         }
+        let form = file
+            .groove
+            .profile
+            .standard
+            .map(|kind| file.standard(kind))
+            .transpose()?;
         let JobFile { groove, tool, cut } = file;
         let cut = cut.resolve(&groove);
         Ok(Job {
@@ -345,6 +354,7 @@ impl Job {
             tool,
             cut,
             profile,
+            form,
         })
     }
 

@@ -21,6 +21,7 @@ mod modbus_map;
 mod modbus_wire;
 mod outputs;
 mod overrides;
+mod profile_view;
 mod profiles;
 mod provenance;
 mod python_client;

@@ -369,7 +369,10 @@ impl StandardProfile {
                 Dimension::mm("pitch diameter", a.major_diameter() - 0.5 * pitch),
                 Dimension::mm("minor diameter", a.minor_diameter(pitch)?),
                 Dimension::mm("thread height", a.thread_height(pitch)?),
-                Dimension::deg("flank angle", 2.0 * AcmeGeneralPurpose::FLANK_HALF_ANGLE_DEG),
+                Dimension::deg(
+                    "flank angle",
+                    2.0 * AcmeGeneralPurpose::FLANK_HALF_ANGLE_DEG,
+                ),
                 Dimension::mm("root radius", a.root_radius()),
             ],
             StandardProfile::BallArc(b) => vec![
