@@ -382,10 +382,9 @@ fn the_plot_is_well_formed_svg_with_the_groove_and_the_form_s_dimensions() {
     // The groove's path: one pitch's worth of points, drawn as one line.
     let groove = text
         .lines()
-        .filter(|l| {
+        .rfind(|l| {
             l.starts_with("<path d=\"M") && l.contains("stroke=\"black\" stroke-width=\"1.5\"")
         })
-        .last()
         .expect("the groove's path");
     assert!(
         groove.matches('L').count() >= 1000,
