@@ -1897,7 +1897,7 @@ fn a_job_s_profile_is_read_without_the_token_and_refused_out_of_the_jobs_folder(
     assert!(svg.starts_with("<svg ") && svg.contains("thread height h3"));
     for (job, status, says) in [
         ("../Cargo.toml", 400, "steps out of the jobs folder"),
-        ("broken.toml", 422, "groove.lead"),
+        ("broken.toml", 422, "line 2, column 8"),
         ("none.toml", 400, "none.toml"),
     ] {
         let answer = serve.get(&format!("/api/profile?job={job}"));
@@ -1973,5 +1973,6 @@ fn the_job_page_shows_the_profile_of_the_job_picked() {
         labels.contains("thread height h3") && labels.contains("crest"),
         "{labels}"
     );
+    page.script("document.getElementById('profile-plot').scrollIntoView()");
     shoot(&page, "job-profile");
 }

@@ -204,6 +204,12 @@ impl ProfileView {
                     colour: "black",
                     points: pts.iter().map(|q| (q.y, q.x)).collect(),
                 },
+                // A lone point, drawn as nothing: room above the crest for the legend.
+                Series {
+                    label: String::new(),
+                    colour: "none",
+                    points: vec![(z0, hi + 0.2 * (hi - lo))],
+                },
             ],
             equal_scale: true,
         };
