@@ -256,6 +256,15 @@ fn the_tr_40x7_section_is_iso_2904_s_profile_over_one_pitch() {
         concave.contains("sharp corner") && concave.contains("ρ 16.0000"),
         "{concave}"
     );
+    // Such a corner does not read back (docs/profiles.md): the points reader refuses it as
+    // an outlier, naming a root corner's line.
+    let error = Job::load(&axial_job(&job, &csv, dir.path()))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("section.csv") && error.contains("(16, "),
+        "{error}"
+    );
 }
 
 #[test]
