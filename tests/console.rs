@@ -1863,3 +1863,116 @@ fn sigterm_to_the_console_stops_its_modbus_run_and_the_page_says_it_is_gone() {
 fn sigint_to_the_console_stops_its_can_run_and_the_page_says_it_is_gone() {
     ended_by_a_signal("canopen-drives.toml", "can-slcan", "INT");
 }
+
+/// The job page's profile, over HTTP: what `whirl profile` says of the job, to anyone who
+/// may read the job list (no token: it changes nothing), and the same refusals as a plan's
+/// for a job out of the folder or one that does not load.
+#[test]
+fn a_job_s_profile_is_read_without_the_token_and_refused_out_of_the_jobs_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let jobs = dir.path().join("jobs");
+    std::fs::create_dir_all(&jobs).unwrap();
+    let trapezoidal = std::fs::read_to_string(repo().join("examples").join(JOB)).unwrap();
+    std::fs::write(jobs.join("tr.toml"), &trapezoidal).unwrap();
+    std::fs::write(jobs.join("broken.toml"), "[groove]\nlead = \"x\"\n").unwrap();
+    let serve = Serve::start_with_jobs(dir, &jobs, &["--token", TOKEN]);
+    let answer = serve.get("/api/profile?job=tr.toml");
+    assert_eq!(answer.status, 200, "{}", answer.body);
+    let profile = answer.json();
+    let fact = |name: &str| {
+        profile["facts"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|f| f["name"] == name)
+            .and_then(|f| f["value"].as_str())
+            .unwrap_or_else(|| panic!("{name} in {profile}"))
+            .to_owned()
+    };
+    // ISO 2904, Tr 40x14 P7: h3 = 0.5·P + a_c = 4 mm, the thread angle 30°.
+    assert_eq!(fact("thread height h3"), "4.0000 mm");
+    assert_eq!(fact("flank angle"), "30.00°");
+    assert_eq!(fact("starts"), "2");
+    let svg = profile["svg"].as_str().unwrap();
+    assert!(svg.starts_with("<svg ") && svg.contains("thread height h3"));
+    for (job, status, says) in [
+        ("../Cargo.toml", 400, "steps out of the jobs folder"),
+        ("broken.toml", 422, "line 2, column 8"),
+        ("none.toml", 400, "none.toml"),
+    ] {
+        let answer = serve.get(&format!("/api/profile?job={job}"));
+        assert_eq!(answer.status, status, "{job}: {}", answer.body);
+        let error = answer.json()["error"].as_str().unwrap().to_owned();
+        assert!(error.contains(says), "{job}: {error}");
+    }
+}
+
+/// The job page in a browser: the Profile button of a job shows its dimensions and the plot
+/// of its axial section (the groove's path, the dimensions labelled), with a screenshot.
+#[test]
+fn the_job_page_shows_the_profile_of_the_job_picked() {
+    let Some((chromium, chromedriver)) = browser() else {
+        return;
+    };
+    let serve = Serve::start(&[]);
+    let driver = Driver::start(&chromedriver);
+    let page = Session::new(driver.1, chromium.to_str().unwrap());
+    let long = Duration::from_secs(60);
+    page.open(&format!("{}#jobs", serve.url()));
+    let row = format!("tr[data-job=\"{JOB}\"]");
+    page.wait("the jobs listed", long, |p| {
+        (p.count(&format!("{row} button[id^=profile]")) == 1).then_some(())
+    });
+    assert!(
+        !page.displayed("#job-profile"),
+        "no profile before one is picked"
+    );
+    page.click(&format!("{row} button[id^=profile]"));
+    page.wait("the profile's plot", long, |p| {
+        p.script("return document.querySelector('#profile-plot svg') !== null")
+            .as_bool()
+            .filter(|&b| b)
+    });
+    assert!(page.displayed("#job-profile"));
+    assert!(page.text("profile-title").contains(JOB));
+    let facts = page
+        .script("return document.getElementById('profile-facts').innerText")
+        .as_str()
+        .unwrap_or_default()
+        .to_owned();
+    // ISO 2904, Tr 40x14 P7 with the example's 0.5 mm root fillets.
+    for words in [
+        "thread height h3",
+        "4.0000 mm",
+        "flank angle",
+        "30.00°",
+        "root radius",
+        "0.5000 mm",
+        "ISO 2904",
+    ] {
+        assert!(facts.contains(words), "the table lists {words:?}: {facts}");
+    }
+    // The groove is one path of the section's points; the dimensions are labelled in it.
+    let longest_path = page
+        .script(
+            "return Math.max(...[...document.querySelectorAll('#profile-plot svg path')]\
+             .map((p) => (p.getAttribute('d').match(/L/g) || []).length))",
+        )
+        .as_u64()
+        .unwrap_or(0);
+    assert!(
+        longest_path >= 1000,
+        "the groove's path has {longest_path} lines"
+    );
+    let labels = page
+        .script("return document.querySelector('#profile-plot svg').textContent")
+        .as_str()
+        .unwrap_or_default()
+        .to_owned();
+    assert!(
+        labels.contains("thread height h3") && labels.contains("crest"),
+        "{labels}"
+    );
+    page.script("document.getElementById('profile-plot').scrollIntoView()");
+    shoot(&page, "job-profile");
+}

@@ -35,6 +35,9 @@ pub struct Job {
     pub cut: Cut,
     /// The groove's transverse profile, validated.
     pub profile: Profile,
+    /// The standard form the profile was built from, where the job names one: its
+    /// dimensions and source are what `whirl profile` shows.
+    pub form: Option<StandardProfile>,
 }
 
 /// The job file as written.
@@ -125,6 +128,19 @@ pub enum StandardKind {
     BallScrew,
     /// Cylindrical worm, DIN 3975-1 flank form ZA, ZN or ZI (`flank`).
     Worm,
+}
+
+impl StandardKind {
+    /// The name a job gives it (`standard = "ball-arc"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            StandardKind::Trapezoidal => "trapezoidal",
+            StandardKind::Acme => "acme",
+            StandardKind::BallArc => "ball-arc",
+            StandardKind::BallScrew => "ball-screw",
+            StandardKind::Worm => "worm",
+        }
+    }
 }
 
 /// `raceway` of a ball screw.
@@ -465,6 +481,19 @@ impl Job {
                 why,
             });
         }
+        // The form whirl profile shows: the designation's, or the standard's dimensions.
+        let form = match &file.designation {
+            Some(designation) => Some(match file.groove.profile.root_radius {
+                Some(radius) => designation.form.with_root_radius(radius)?,
+                None => designation.form,
+            }),
+            None => file
+                .groove
+                .profile
+                .standard
+                .map(|kind| file.standard(kind))
+                .transpose()?,
+        };
         let JobFile {
             groove, tool, cut, ..
         } = file;
@@ -474,6 +503,7 @@ impl Job {
             tool,
             cut,
             profile,
+            form,
         })
     }
 

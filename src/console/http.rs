@@ -102,6 +102,7 @@ pub fn router(console: Arc<Console>, edge: Arc<Edge>) -> Router {
         .route("/api/session", get(session))
         .route("/api/machines", get(machines))
         .route("/api/jobs", get(jobs))
+        .route("/api/profile", get(profile))
         .route("/api/plan", post(plan))
         .route("/api/verify", post(verify))
         .route("/api/runs", get(runs).post(start))
@@ -373,6 +374,21 @@ async fn machines(State(console): State<Arc<Console>>) -> Json<Vec<String>> {
 
 async fn jobs(State(console): State<Arc<Console>>) -> Json<Vec<String>> {
     Json(console.jobs.list())
+}
+
+#[derive(serde::Deserialize)]
+struct JobOnly {
+    job: String,
+}
+
+/// What whirl understood of a job's groove: a read, open as the job list is.
+async fn profile(
+    State(console): State<Arc<Console>>,
+    Query(request): Query<JobOnly>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    blocking(move || console.profile(&request.job))
+        .await
+        .map(Json)
 }
 
 #[derive(serde::Deserialize)]

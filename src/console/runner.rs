@@ -254,6 +254,20 @@ impl Console {
         Ok((job, plan))
     }
 
+    /// What whirl understood of job `name`'s groove, as `whirl profile` prints it: its facts
+    /// (a standard form's dimensions first) and the axial section drawn (SVG).
+    pub fn profile(&self, name: &str) -> Result<serde_json::Value, StartError> {
+        let path = self.jobs.resolve(name)?;
+        let job = Job::load(&path).map_err(|e| StartError::Job(e.to_string()))?;
+        let view = crate::judge::profile_view::view(&job)
+            .map_err(|e| StartError::Job(format!("{name}: {e}")))?;
+        Ok(serde_json::json!({
+            "job": name,
+            "facts": view.facts,
+            "svg": view.svg(&format!("{name}: axial section at polar angle 0, one pitch")),
+        }))
+    }
+
     /// The plan report of job `name` on machine `machine`, as `whirl plan --report` writes it.
     pub fn plan(&self, name: &str, machine: &str) -> Result<serde_json::Value, StartError> {
         let (_, plan) = self.planned(name, self.machine(machine)?)?;

@@ -9,6 +9,8 @@
 //! - [`fastest`]: the fastest feed whose planned program the engine measures within Δ.
 //! - [`plots`]: a run's axes over time and the section it cut, from its log; [`svg`]
 //!   draws them.
+//! - [`profile_view`]: what whirl understood of a job's groove, and its axial section
+//!   drawn (`whirl profile`, the console's job page).
 //! - [`refine`]: `whirl plan`'s nodes: planned, measured by the engine on a stretch of the
 //!   program, planned again.
 //! - [`section`]: a measured section of a cut part, read in its stated frame, and each
@@ -23,6 +25,7 @@ pub mod guard;
 pub mod linuxcnc;
 pub mod measure;
 pub mod plots;
+pub mod profile_view;
 pub mod refine;
 pub mod sampled;
 pub mod section;

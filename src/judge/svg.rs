@@ -32,8 +32,10 @@ pub struct Plot {
     pub equal_scale: bool,
 }
 
-const WIDTH: f64 = 900.0;
-const HEIGHT: f64 = 600.0;
+/// A plot's size, px.
+pub(crate) const WIDTH: f64 = 900.0;
+/// A plot's height, px.
+pub(crate) const HEIGHT: f64 = 600.0;
 const MARGIN: f64 = 70.0;
 
 impl Plot {
@@ -209,7 +211,8 @@ fn label(v: f64) -> String {
     }
 }
 
-fn escape(s: &str) -> String {
+/// `s` as SVG text.
+pub(crate) fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")

@@ -19,7 +19,8 @@ fn the_examples_plan_on_the_modbus_and_can_machines() {
     let jobs = util::examples();
     // The folder was read: the first example is among what was found.
     assert!(
-        jobs.iter().any(|p| p.ends_with("examples/trapezoidal/job.toml")),
+        jobs.iter()
+            .any(|p| p.ends_with("examples/trapezoidal/job.toml")),
         "{jobs:?}"
     );
     let plc = MachineProfile::load(&root.join("machine-profiles/modbus-plc.toml")).unwrap();

@@ -23,6 +23,7 @@ mod modbus_wire;
 mod nut;
 mod outputs;
 mod overrides;
+mod profile_view;
 mod profiles;
 mod provenance;
 mod python_client;

@@ -204,6 +204,11 @@ pub(crate) enum Command {
     /// and the segments across that window, and the angle with the largest margin (the one
     /// `plan` takes when the job gives none), as a table and, with --svg, a plot.
     Angles(crate::angles::AnglesArgs),
+    /// What whirl understood of a job's groove, to see before cutting: a standard form's
+    /// dimensions and source, or what the curve through the points is (its depth, its
+    /// tightest concave stretch, the fit); lead, starts, hand and axial pitch; with -o the
+    /// axial section over one pitch as a points file, with --svg its plot.
+    Profile(crate::profile::ProfileArgs),
     /// Measure a program's profile error against a job's groove with the swept-volume engine.
     /// Exits 0 within Δ, 2 beyond it (the report is written either way), 1 on errors.
     Verify {

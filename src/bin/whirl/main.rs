@@ -11,6 +11,7 @@ mod interrupt;
 mod keys;
 mod measure;
 mod numbers;
+mod profile;
 mod provenance;
 mod runs;
 mod serve;
@@ -225,6 +226,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
         }
         Command::Measure(args) => measure::run(args),
         Command::Angles(args) => angles::run(args),
+        Command::Profile(args) => profile::run(args),
         Command::Verify {
             program,
             job,

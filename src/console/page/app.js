@@ -147,8 +147,33 @@ async function jobsPage(machines, jobs) {
     verify.textContent = "Verify";
     verify.id = "verify-" + i;
     verify.onclick = () => planJob(row, "verify");
-    actions.append(plan, " ", verify);
+    const profile = document.createElement("button");
+    profile.textContent = "Profile";
+    profile.id = "profile-" + i;
+    profile.onclick = () => showProfile(row.dataset.job);
+    actions.append(plan, " ", verify, " ", profile);
   });
+}
+
+// The groove of the job picked, as whirl understood it: its facts and its axial section.
+async function showProfile(job) {
+  $("jobs-error").textContent = "";
+  try {
+    const r = await api("/api/profile?job=" + encodeURIComponent(job));
+    $("profile-title").textContent = "Profile of " + r.job;
+    const body = $("profile-facts").querySelector("tbody");
+    body.replaceChildren();
+    for (const f of r.facts) {
+      const row = body.insertRow();
+      row.insertCell().textContent = f.name;
+      row.insertCell().textContent = f.value;
+    }
+    $("profile-plot").innerHTML = r.svg;
+    $("job-profile").hidden = false;
+  } catch (e) {
+    $("jobs-error").textContent = job + ": " + e.message;
+    $("job-profile").hidden = true;
+  }
 }
 
 async function planJob(row, what) {

@@ -15,6 +15,7 @@
 //! its nose around the edge. A concave corner cannot be cut by a nose of finite radius and is
 //! reported by [`Profile::concave_stretches`].
 
+pub mod axial_section;
 pub mod drawing;
 pub mod nurbs;
 pub mod points;
@@ -344,6 +345,15 @@ impl Profile {
     /// exact pieces, exact points, and points too few to smooth).
     pub fn fit(&self) -> Option<Fit> {
         self.fit
+    }
+
+    /// For a profile through points, how many it passes through over one period (after
+    /// mirroring a half period, less a closing point); `None` for a standard's exact pieces.
+    pub fn spline_points(&self) -> Option<usize> {
+        match self.pieces.as_slice() {
+            [Piece::Spline(spline)] => Some(spline.knots().len() - 1),
+            _ => None,
+        }
     }
 
     /// For a profile fitted through rounded points, how much the rounding can bend it (`None`

@@ -60,8 +60,8 @@ mod trapezoid;
 pub mod worm;
 
 pub use ball_arc::BallArc;
-pub use metric::IsoMetric;
 pub use ball_screw::{BallScrew, Raceway};
+pub use metric::IsoMetric;
 pub use trapezoid::{
     asme_b1_5_minor_diameter_allowance, iso2904_crest_clearance, AcmeGeneralPurpose,
     IsoTrapezoidal, StubAcme, MM_PER_INCH,
