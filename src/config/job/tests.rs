@@ -106,8 +106,9 @@ fn every_designation_refusal_of_a_job_names_what() {
             "`Q 40x7` is not a designation whirl reads",
         ),
         (
+            // A nut's class (7H) makes the groove internal: the example's ring cannot cut it.
             "designation = \"Tr 40x7-7H\"",
-            "names an internal thread (a nut",
+            "is a nut's groove, cut from inside its bore",
         ),
         (
             "designation = \"Tr 40x7\"\nmajor_diameter = 40.0",
@@ -275,4 +276,17 @@ fn a_capital_class_designation_makes_the_groove_a_nut_and_a_job_saying_otherwise
     assert!((rho_min - 16.5).abs() < 1e-9 && (rho_max - 20.5).abs() < 1e-9);
     let e = designated("internal = false").unwrap_err();
     assert!(e.to_string().contains("groove.internal"), "{e}");
+}
+
+#[test]
+fn a_nut_given_by_a_drawing_is_refused_for_its_points() {
+    // A drawing is read as a screw's section (the groove below the crest line).
+    let e = nut(|t| {
+        t.replace(
+            "standard = \"trapezoidal\"\nmajor_diameter = 40.0\nroot_radius = 0.5",
+            "dxf = \"groove.dxf\"",
+        )
+    })
+    .unwrap_err();
+    assert!(e.to_string().contains("section = \"axial\""), "{e}");
 }
