@@ -461,9 +461,14 @@ mod tests {
         // rule (centre r behind the surface, in the nut's wall) sits 2r further out: the
         // bore head solved for the same radial point with the nut's normal and with the
         // screw's differs by 2r in X.
+        // A nose that cuts all round (half angle π), so that the screw's rule gives a pose to
+        // compare rather than a refusal: its contact lies on the back of a real insert.
         let l = Linkage {
             p: 7.0 / TAU,
-            ring: ring(Whirling::Bore, 12.0, 0.4, 3.0),
+            ring: Ring {
+                edge_half_angle: PI,
+                ..ring(Whirling::Bore, 12.0, 0.4, 3.0)
+            },
         };
         let point = radial_point(20.5, 0.3);
         let nut = l.solve(&point).unwrap();
