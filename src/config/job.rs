@@ -131,6 +131,38 @@ pub enum StandardKind {
 }
 
 impl StandardKind {
+    /// The `[groove.profile]` keys that give this form its dimensions (see
+    /// [`ProfileSpec`]); any other form's key beside it is refused.
+    fn keys(self) -> &'static [&'static str] {
+        match self {
+            StandardKind::Trapezoidal => &["major_diameter", "root_radius", "crest_clearance"],
+            StandardKind::Acme => &["major_diameter", "root_radius"],
+            StandardKind::BallArc => &[
+                "ball_diameter",
+                "groove_radius",
+                "pitch_diameter",
+                "outer_diameter",
+            ],
+            StandardKind::BallScrew => &[
+                "raceway",
+                "ball_diameter",
+                "conformity",
+                "contact_angle_deg",
+                "pitch_diameter",
+                "outer_diameter",
+                "relief_radius",
+            ],
+            StandardKind::Worm => &[
+                "flank",
+                "module",
+                "diameter_quotient",
+                "pressure_angle_deg",
+                "bottom_clearance",
+                "root_radius",
+            ],
+        }
+    }
+
     /// The name a job gives it (`standard = "ball-arc"`).
     pub fn name(self) -> &'static str {
         match self {
@@ -224,6 +256,31 @@ pub struct ProfileSpec {
     pub pressure_angle_deg: Option<f64>,
     /// Worm: bottom clearance factor c* (default 0.2).
     pub bottom_clearance: Option<f64>,
+}
+
+impl ProfileSpec {
+    /// The keys that give a standard form its dimensions, each with whether the job sets it:
+    /// what points, a drawing or a designation must not be given beside.
+    fn form_keys(&self) -> [(&'static str, bool); 16] {
+        [
+            ("major_diameter", self.major_diameter.is_some()),
+            ("root_radius", self.root_radius.is_some()),
+            ("crest_clearance", self.crest_clearance.is_some()),
+            ("ball_diameter", self.ball_diameter.is_some()),
+            ("groove_radius", self.groove_radius.is_some()),
+            ("pitch_diameter", self.pitch_diameter.is_some()),
+            ("outer_diameter", self.outer_diameter.is_some()),
+            ("raceway", self.raceway.is_some()),
+            ("conformity", self.conformity.is_some()),
+            ("contact_angle_deg", self.contact_angle_deg.is_some()),
+            ("relief_radius", self.relief_radius.is_some()),
+            ("flank", self.flank.is_some()),
+            ("module", self.module.is_some()),
+            ("diameter_quotient", self.diameter_quotient.is_some()),
+            ("pressure_angle_deg", self.pressure_angle_deg.is_some()),
+            ("bottom_clearance", self.bottom_clearance.is_some()),
+        ]
+    }
 }
 
 /// `[tool]`.
@@ -823,24 +880,7 @@ impl JobFile {
     /// standard.
     fn profile(&self, dir: &Path) -> Result<Profile, JobError> {
         let spec = &self.groove.profile;
-        let standard_keys = [
-            ("major_diameter", spec.major_diameter.is_some()),
-            ("root_radius", spec.root_radius.is_some()),
-            ("crest_clearance", spec.crest_clearance.is_some()),
-            ("ball_diameter", spec.ball_diameter.is_some()),
-            ("groove_radius", spec.groove_radius.is_some()),
-            ("pitch_diameter", spec.pitch_diameter.is_some()),
-            ("outer_diameter", spec.outer_diameter.is_some()),
-            ("raceway", spec.raceway.is_some()),
-            ("conformity", spec.conformity.is_some()),
-            ("contact_angle_deg", spec.contact_angle_deg.is_some()),
-            ("relief_radius", spec.relief_radius.is_some()),
-            ("flank", spec.flank.is_some()),
-            ("module", spec.module.is_some()),
-            ("diameter_quotient", spec.diameter_quotient.is_some()),
-            ("pressure_angle_deg", spec.pressure_angle_deg.is_some()),
-            ("bottom_clearance", spec.bottom_clearance.is_some()),
-        ];
+        let standard_keys = spec.form_keys();
         if let Some(designation) = &self.designation {
             return self.designated(designation);
         }
@@ -905,19 +945,7 @@ impl JobFile {
                             .into(),
                     ));
                 }
-                let standard = self.standard(kind)?;
-                let pitch = self.groove.lead / f64::from(self.groove.starts);
-                let material = self.groove.material();
-                let pieces = match material {
-                    Material::Inside => standard.pieces(pitch)?,
-                    Material::Outside => standard.internal_pieces(pitch)?,
-                };
-                Ok(Profile::from_axial_of(
-                    pieces,
-                    self.groove.p(),
-                    self.groove.period(),
-                    material,
-                ))
+                self.axial(&self.standard(kind)?)
             }
         }
     }
@@ -936,14 +964,13 @@ impl JobFile {
             ("section", spec.section.is_some()),
             ("mirror", spec.mirror.is_some()),
             ("fit_tolerance", spec.fit_tolerance.is_some()),
-            ("major_diameter", spec.major_diameter.is_some()),
-            ("crest_clearance", spec.crest_clearance.is_some()),
-            ("ball_diameter", spec.ball_diameter.is_some()),
-            ("groove_radius", spec.groove_radius.is_some()),
-            ("pitch_diameter", spec.pitch_diameter.is_some()),
-            ("outer_diameter", spec.outer_diameter.is_some()),
         ];
-        if let Some((key, _)) = others.iter().find(|(_, set)| *set) {
+        // A designation leaves the root radius to the maker: every other dimension is its.
+        let dimensions = spec
+            .form_keys()
+            .into_iter()
+            .filter(|(key, _)| *key != "root_radius");
+        if let Some((key, _)) = others.into_iter().chain(dimensions).find(|(_, set)| *set) {
             return Err(JobError::ProfileSpec(format!(
                 "{key} does not go with designation: the designation fixes the form (only \
                  root_radius may be given beside it)"
@@ -953,6 +980,12 @@ impl JobFile {
             Some(radius) => designation.form.with_root_radius(radius)?,
             None => designation.form,
         };
+        self.axial(&form)
+    }
+
+    /// The profile of a standard `form` over one axial pitch: the screw's section, or its
+    /// nut's where the groove is internal.
+    fn axial(&self, form: &StandardProfile) -> Result<Profile, JobError> {
         let pitch = self.groove.lead / f64::from(self.groove.starts);
         let material = self.groove.material();
         let pieces = match material {
@@ -1027,45 +1060,18 @@ impl JobFile {
         let need = |key: &'static str, v: Option<f64>| {
             v.ok_or_else(|| JobError::ProfileSpec(format!("standard = {kind:?} needs {key}")))
         };
-        let refuse = |key: &'static str, set: bool| {
-            if set {
-                Err(JobError::ProfileSpec(format!(
-                    "{key} is not a dimension of standard = {kind:?}"
-                )))
-            } else {
-                Ok(())
-            }
-        };
-        // The ball screw's and the worm's keys, refused for every form that is not theirs.
-        let ball_screw_keys = [
-            ("raceway", spec.raceway.is_some()),
-            ("conformity", spec.conformity.is_some()),
-            ("contact_angle_deg", spec.contact_angle_deg.is_some()),
-            ("relief_radius", spec.relief_radius.is_some()),
-        ];
-        let worm_keys = [
-            ("flank", spec.flank.is_some()),
-            ("module", spec.module.is_some()),
-            ("diameter_quotient", spec.diameter_quotient.is_some()),
-            ("pressure_angle_deg", spec.pressure_angle_deg.is_some()),
-            ("bottom_clearance", spec.bottom_clearance.is_some()),
-        ];
-        if kind != StandardKind::BallScrew {
-            for (key, set) in ball_screw_keys {
-                refuse(key, set)?;
-            }
-        }
-        if kind != StandardKind::Worm {
-            for (key, set) in worm_keys {
-                refuse(key, set)?;
-            }
+        let own = kind.keys();
+        if let Some((key, _)) = spec
+            .form_keys()
+            .into_iter()
+            .find(|(key, set)| *set && !own.contains(key))
+        {
+            return Err(JobError::ProfileSpec(format!(
+                "{key} is not a dimension of standard = {kind:?}"
+            )));
         }
         Ok(match kind {
             StandardKind::BallScrew => {
-                refuse("major_diameter", spec.major_diameter.is_some())?;
-                refuse("root_radius", spec.root_radius.is_some())?;
-                refuse("crest_clearance", spec.crest_clearance.is_some())?;
-                refuse("groove_radius", spec.groove_radius.is_some())?;
                 let raceway = match spec.raceway {
                     Some(RacewaySpec::GothicArch) => Raceway::GothicArch,
                     Some(RacewaySpec::CircularArc) => Raceway::CircularArc,
@@ -1088,16 +1094,6 @@ impl JobFile {
                 )?)
             }
             StandardKind::Worm => {
-                for (key, set) in [
-                    ("major_diameter", spec.major_diameter.is_some()),
-                    ("crest_clearance", spec.crest_clearance.is_some()),
-                    ("ball_diameter", spec.ball_diameter.is_some()),
-                    ("groove_radius", spec.groove_radius.is_some()),
-                    ("pitch_diameter", spec.pitch_diameter.is_some()),
-                    ("outer_diameter", spec.outer_diameter.is_some()),
-                ] {
-                    refuse(key, set)?;
-                }
                 let flank = match spec.flank {
                     Some(WormFlankSpec::ZA) => WormFlank::ZA,
                     Some(WormFlankSpec::ZN) => WormFlank::ZN,
@@ -1119,10 +1115,6 @@ impl JobFile {
                 )?)
             }
             StandardKind::Trapezoidal | StandardKind::Acme => {
-                refuse("ball_diameter", spec.ball_diameter.is_some())?;
-                refuse("groove_radius", spec.groove_radius.is_some())?;
-                refuse("pitch_diameter", spec.pitch_diameter.is_some())?;
-                refuse("outer_diameter", spec.outer_diameter.is_some())?;
                 let d = need("major_diameter", spec.major_diameter)?;
                 if kind == StandardKind::Trapezoidal {
                     StandardProfile::IsoTrapezoidal(IsoTrapezoidal::new(
@@ -1131,21 +1123,15 @@ impl JobFile {
                         spec.crest_clearance,
                     )?)
                 } else {
-                    refuse("crest_clearance", spec.crest_clearance.is_some())?;
                     StandardProfile::Acme(AcmeGeneralPurpose::new(d, spec.root_radius)?)
                 }
             }
-            StandardKind::BallArc => {
-                refuse("major_diameter", spec.major_diameter.is_some())?;
-                refuse("root_radius", spec.root_radius.is_some())?;
-                refuse("crest_clearance", spec.crest_clearance.is_some())?;
-                StandardProfile::BallArc(BallArc::new(
-                    need("ball_diameter", spec.ball_diameter)?,
-                    need("groove_radius", spec.groove_radius)?,
-                    need("pitch_diameter", spec.pitch_diameter)?,
-                    need("outer_diameter", spec.outer_diameter)?,
-                )?)
-            }
+            StandardKind::BallArc => StandardProfile::BallArc(BallArc::new(
+                need("ball_diameter", spec.ball_diameter)?,
+                need("groove_radius", spec.groove_radius)?,
+                need("pitch_diameter", spec.pitch_diameter)?,
+                need("outer_diameter", spec.outer_diameter)?,
+            )?),
         })
     }
 }

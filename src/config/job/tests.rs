@@ -119,6 +119,10 @@ fn every_designation_refusal_of_a_job_names_what() {
             "standard does not go with designation",
         ),
         (
+            "designation = \"Tr 40x7\"\nmodule = 2.0",
+            "module does not go with designation",
+        ),
+        (
             "designation = \"Tr 40x7\"\npoints = \"p.csv\"",
             "points does not go with designation",
         ),

@@ -474,10 +474,18 @@ impl StandardProfile {
                 Dimension::mm("thread height h3", t.thread_height(pitch)?),
                 Dimension::mm("crest clearance a_c", t.crest_clearance(pitch)?),
                 Dimension::deg("flank angle", 2.0 * IsoTrapezoidal::FLANK_HALF_ANGLE_DEG),
-                Dimension::mm("crest width", crest_width(pitch, 0.5 * pitch, 15.0)),
+                Dimension::mm(
+                    "crest width",
+                    crest_width(pitch, 0.5 * pitch, IsoTrapezoidal::FLANK_HALF_ANGLE_DEG),
+                ),
                 Dimension::mm(
                     "root width",
-                    root_width(pitch, 0.5 * pitch, t.thread_height(pitch)?, 15.0),
+                    root_width(
+                        pitch,
+                        0.5 * pitch,
+                        t.thread_height(pitch)?,
+                        IsoTrapezoidal::FLANK_HALF_ANGLE_DEG,
+                    ),
                 ),
                 Dimension::mm("root radius", t.root_radius()),
             ],
@@ -490,10 +498,18 @@ impl StandardProfile {
                     "flank angle",
                     2.0 * AcmeGeneralPurpose::FLANK_HALF_ANGLE_DEG,
                 ),
-                Dimension::mm("crest width", crest_width(pitch, 0.5 * pitch, 14.5)),
+                Dimension::mm(
+                    "crest width",
+                    crest_width(pitch, 0.5 * pitch, AcmeGeneralPurpose::FLANK_HALF_ANGLE_DEG),
+                ),
                 Dimension::mm(
                     "root width",
-                    root_width(pitch, 0.5 * pitch, a.thread_height(pitch)?, 14.5),
+                    root_width(
+                        pitch,
+                        0.5 * pitch,
+                        a.thread_height(pitch)?,
+                        AcmeGeneralPurpose::FLANK_HALF_ANGLE_DEG,
+                    ),
                 ),
                 Dimension::mm("root radius", a.root_radius()),
             ],
@@ -506,11 +522,16 @@ impl StandardProfile {
                 Dimension::deg("flank angle", 2.0 * StubAcme::FLANK_HALF_ANGLE_DEG),
                 Dimension::mm(
                     "crest width",
-                    crest_width(pitch, a.basic_height(pitch), 14.5),
+                    crest_width(pitch, a.basic_height(pitch), StubAcme::FLANK_HALF_ANGLE_DEG),
                 ),
                 Dimension::mm(
                     "root width",
-                    root_width(pitch, a.basic_height(pitch), a.thread_height(pitch)?, 14.5),
+                    root_width(
+                        pitch,
+                        a.basic_height(pitch),
+                        a.thread_height(pitch)?,
+                        StubAcme::FLANK_HALF_ANGLE_DEG,
+                    ),
                 ),
                 Dimension::mm("root radius", a.root_radius()),
             ],
