@@ -16,6 +16,12 @@
 //! error: it may be reported smaller than it is when its poses leave the windows, never within
 //! Δ when it is not.
 //!
+//! A gap also reads no deeper than −r: a tool that went further than r past Q has its tip
+//! circle beyond Q, and Q's distance to it no longer says how far (a nose set on the wrong
+//! side of a surface, 2r past it, reads as 0 where it went straight in and as −r where its
+//! tip circle crosses the surface). Such a program is refused all the same; its report names
+//! where, not how deep.
+//!
 //! The target is sampled over every start and the whole formed length, at axial steps of
 //! 8/7 of the feed per revolution: the steps walk through every phase of the feed scallop.
 
