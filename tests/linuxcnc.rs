@@ -377,3 +377,24 @@ fn streams_to_linuxcnc_hold_resume_abort_errors_and_stops() {
     assert_eq!(ended(&read), Some(false));
     runtime.block_on(sim.shut_down());
 }
+
+#[test]
+fn a_second_linuxcnc_is_refused_while_the_lock_file_exists() {
+    // LinuxCNC's start script refuses a second instance by /tmp/linuxcnc.lock (one per
+    // host); whirl refuses before starting one, naming the file.
+    let _turn = turn();
+    let lock = Path::new("/tmp/linuxcnc.lock");
+    assert!(
+        !lock.exists(),
+        "a LinuxCNC outside these tests holds {lock:?}"
+    );
+    std::fs::write(lock, b"").unwrap();
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let started = runtime.block_on(Simulation::start(&profile(), 50.0));
+    std::fs::remove_file(lock).unwrap();
+    let error = started.err().expect("started beside a lock").to_string();
+    assert!(
+        error.contains("/tmp/linuxcnc.lock") && error.contains("one instance per host"),
+        "{error}"
+    );
+}

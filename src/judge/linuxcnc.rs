@@ -97,7 +97,8 @@ pub enum LinuxcncSimError {
     /// Another LinuxCNC runs on this host.
     #[error(
         "another LinuxCNC runs on this host ({LOCK_FILE} exists): LinuxCNC allows one \
-         instance per host, and starting a second would stop the first"
+         instance per host, and starting a second would stop the first; if none runs, the \
+         file was left by a LinuxCNC killed before its clean-up: remove it"
     )]
     Busy,
     /// A speed-up that cannot be had.
@@ -434,6 +435,9 @@ impl Simulation {
                     .args(["-KILL", "--", &format!("-{pid}")])
                     .status();
                 let _ = self.linuxcnc.wait().await;
+                // The script's clean-up, which removes the lock, died with it: the lock
+                // is this instance's, and left behind it would refuse every later start.
+                let _ = std::fs::remove_file(LOCK_FILE);
             }
         }
         let _ = std::fs::remove_dir_all(&self.dir);
