@@ -31,5 +31,6 @@ mod records;
 mod sim;
 mod stream;
 mod sweep;
+mod thread_forms;
 mod util;
 mod verify;

@@ -2,7 +2,7 @@
 //! `2.875-0.4P-0.8L-ACME-2G-LH`, read against the ASME series of diameters and pitches.
 
 use super::designation::{Designation, DesignationError};
-use super::reading::{left_hand, number, refuse, starts};
+use super::reading::{left_hand, number, refuse, size_inches, starts};
 use super::{AcmeGeneralPurpose, StandardProfile, StubAcme, MM_PER_INCH};
 
 /// The preferred diameter–pitch combinations of the Acme thread series: nominal size (as the
@@ -128,25 +128,6 @@ fn read_parts(head: &str, tail: &str, stub: bool) -> Result<Designation, String>
         class,
         row: format!("{standard} series: {name} in, {tpi} threads per inch"),
     })
-}
-
-/// A size in inches: a decimal (`0.5`, `.500`), a fraction (`1/2`) or a whole number and a
-/// fraction (`1 1/2`, written `1-1/2` too).
-fn size_inches(size: &str) -> Result<f64, String> {
-    let fraction = |word: &str| -> Result<f64, String> {
-        match word.split_once('/') {
-            Some((num, den)) => Ok(number(num, "size (in)")? / number(den, "size (in)")?),
-            None => number(word, "size (in)"),
-        }
-    };
-    let words: Vec<&str> = size.split_whitespace().collect();
-    match words.as_slice() {
-        [one] => fraction(one),
-        [whole, part] if part.contains('/') && !whole.contains('/') => {
-            Ok(number(whole, "size (in)")? + fraction(part)?)
-        }
-        _ => Err(format!("the size `{size}` is not a size in inches")),
-    }
 }
 
 #[cfg(test)]

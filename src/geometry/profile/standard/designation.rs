@@ -1,11 +1,11 @@
-//! A thread as a drawing names it: `Tr 40x7`, `Tr 40 x 14 P7 LH`, `HA 4.5`, `ZI m2 z1 q10`.
+//! A thread as a drawing names it: `Tr 40x7`, `Tr 40 x 14 P7 LH`, `S 48x8`, `1/4-20 UNC-2A`, `ZI m2 z1 q10`.
 //!
 //! Each family reads its own designations (`FAMILIES`): a family that does not recognise the
 //! text says `None` and the next one is asked; one that recognises it either builds the form
 //! from its standard's tables or refuses it naming what is wrong (a size the table does not
 //! have, a pitch that does not belong to the size, a malformed number).
 
-use super::{acme_series, iso2902, metric, StandardError, StandardProfile};
+use super::{acme_series, buttress, iso2902, metric, unified, StandardError, StandardProfile};
 
 /// What a designation fixes: the form, and the lead, starts and hand where it says them.
 #[derive(Debug, Clone, PartialEq)]
@@ -31,7 +31,8 @@ pub enum DesignationError {
     /// No family reads this text.
     #[error(
         "`{text}` is not a designation whirl reads; it reads, for example, `Tr 40x7`, \
-         `Tr 40x14 P7 LH`, `1/2-10 ACME-2G`, `M20x2.5`, `HA 4.5`, `ZI m2 z1 q10`"
+         `Tr 40x14 P7 LH`, `S 48x8`, `1/2-10 ACME-2G`, `1/4-20 UNC-2A`, `M20x2.5`, \
+         `ZI m2 z1 q10`"
     )]
     Unknown {
         /// The text given.
@@ -61,7 +62,9 @@ type Reader = fn(&str) -> Option<Result<Designation, DesignationError>>;
 /// The families asked in turn, most specific first.
 const FAMILIES: &[Reader] = &[
     iso2902::read,
+    buttress::read,
     acme_series::read,
+    unified::read,
     metric::read,
     super::worm::read_designation,
 ];
@@ -69,16 +72,20 @@ const FAMILIES: &[Reader] = &[
 impl Designation {
     /// Whether the designation names an internal thread (a nut): ISO's tolerance classes
     /// write the internal thread's tolerance position in capitals (ISO 2903: `7H`, ISO 965-1:
-    /// `6H`), the external's in small letters (`7e`, `6g`). (ASME's Acme classes, `2G`, name both; a job says
-    /// which it cuts.)
+    /// `6H`), the external's in small letters (`7e`, `6g`); ASME B1.1's end in B for the
+    /// internal thread (`2B`), A for the external (`2A`). (ASME's Acme classes, `2G`, name
+    /// both; a job says which it cuts.)
     pub fn internal(&self) -> bool {
-        matches!(
-            self.form,
-            StandardProfile::IsoTrapezoidal(_) | StandardProfile::IsoMetric(_)
-        ) && self
-            .class
-            .as_deref()
-            .is_some_and(|class| class.chars().any(|c| c.is_ascii_uppercase()))
+        let Some(class) = self.class.as_deref() else {
+            return false;
+        };
+        match self.form {
+            StandardProfile::IsoTrapezoidal(_) | StandardProfile::IsoMetric(_) => {
+                class.chars().any(|c| c.is_ascii_uppercase())
+            }
+            StandardProfile::Unified(_) => class.ends_with('B'),
+            _ => false,
+        }
     }
 }
 

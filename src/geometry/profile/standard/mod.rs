@@ -17,6 +17,9 @@
 //! - [`StubAcme`]: Stub Acme thread, ASME B1.8, 29° included angle, basic height 0.3·P.
 //! - [`IsoMetric`]: ISO general purpose metric thread, ISO 68-1 / ISO 965-1, 60°, the
 //!   external thread's root rounded to ISO 965-1's `d3`.
+//! - [`Unified`]: ASME B1.1 unified inch thread (UNC, UNF, UN), the metric form on inch
+//!   sizes.
+//! - [`Buttress`]: DIN 513-1 buttress thread, 3° load flank and 30° clearance flank.
 //! - [`BallArc`]: single circular-arc ("ball-arc") ball-screw groove with zero contact angle.
 //!
 //! [`StandardProfile`] wraps them so a job can carry any of them; [`designation`] reads them
@@ -52,20 +55,24 @@ mod acme_series;
 mod arc_fit;
 mod ball_arc;
 pub mod ball_screw;
+mod buttress;
 pub mod designation;
 mod iso2902;
 mod metric;
 mod reading;
 mod trapezoid;
+mod unified;
 pub mod worm;
 
 pub use ball_arc::BallArc;
 pub use ball_screw::{BallScrew, Raceway};
+pub use buttress::Buttress;
 pub use metric::IsoMetric;
 pub use trapezoid::{
     asme_b1_5_minor_diameter_allowance, iso2904_crest_clearance, AcmeGeneralPurpose,
     IsoTrapezoidal, StubAcme, MM_PER_INCH,
 };
+pub use unified::Unified;
 pub use worm::{Worm, WormFlank};
 
 /// Why a standard profile's dimensions are rejected.
@@ -402,6 +409,10 @@ pub enum StandardProfile {
     StubAcme(StubAcme),
     /// ISO metric (M).
     IsoMetric(IsoMetric),
+    /// Unified inch (UNC, UNF, UN).
+    Unified(Unified),
+    /// Buttress (S), DIN 513.
+    Buttress(Buttress),
     /// Circular-arc ball-screw groove.
     BallArc(BallArc),
     /// Ball screw raceway: gothic arch or circular arc.
@@ -450,6 +461,10 @@ impl StandardProfile {
             StandardProfile::Acme(_) => "ASME B1.5-1997 general purpose Acme",
             StandardProfile::StubAcme(_) => "ASME/ANSI B1.8-1988 (R2021) Stub Acme",
             StandardProfile::IsoMetric(_) => "ISO 68-1:1998 basic profile, ISO 965-1:2013 root",
+            StandardProfile::Unified(_) => {
+                "ASME B1.1-2019 unified inch thread (ISO 68-1's basic profile), UNR root"
+            }
+            StandardProfile::Buttress(_) => "DIN 513-1:1985 buttress thread profile",
             StandardProfile::BallArc(_) => "circular-arc ball-screw raceway (catalogue data)",
             StandardProfile::BallScrew(b) => match b.raceway() {
                 Raceway::GothicArch => {
@@ -535,25 +550,45 @@ impl StandardProfile {
                 ),
                 Dimension::mm("root radius", a.root_radius()),
             ],
-            StandardProfile::IsoMetric(m) => vec![
-                Dimension::mm("major diameter d", m.major_diameter()),
-                Dimension::mm("pitch diameter d2", m.pitch_diameter(pitch)),
-                Dimension::mm(
-                    "minor diameter d3",
-                    m.major_diameter() - 2.0 * m.thread_height(pitch),
-                ),
-                Dimension::mm(
-                    "fundamental triangle height H",
-                    IsoMetric::fundamental_height(pitch),
-                ),
-                Dimension::mm("thread height h3", m.thread_height(pitch)),
-                Dimension::deg("flank angle", 2.0 * IsoMetric::FLANK_HALF_ANGLE_DEG),
-                Dimension::mm(
-                    "crest width",
-                    crest_width(pitch, 0.75 * IsoMetric::fundamental_height(pitch), 30.0),
-                ),
-                Dimension::mm("root radius R", IsoMetric::root_radius(pitch)),
-            ],
+            StandardProfile::IsoMetric(m) | StandardProfile::Unified(Unified { metric: m, .. }) => {
+                vec![
+                    Dimension::mm("major diameter d", m.major_diameter()),
+                    Dimension::mm("pitch diameter d2", m.pitch_diameter(pitch)),
+                    Dimension::mm(
+                        "minor diameter d3",
+                        m.major_diameter() - 2.0 * m.thread_height(pitch),
+                    ),
+                    Dimension::mm(
+                        "fundamental triangle height H",
+                        IsoMetric::fundamental_height(pitch),
+                    ),
+                    Dimension::mm("thread height h3", m.thread_height(pitch)),
+                    Dimension::deg("flank angle", 2.0 * IsoMetric::FLANK_HALF_ANGLE_DEG),
+                    Dimension::mm(
+                        "crest width",
+                        crest_width(pitch, 0.75 * IsoMetric::fundamental_height(pitch), 30.0),
+                    ),
+                    Dimension::mm("root radius R", IsoMetric::root_radius(pitch)),
+                ]
+            }
+            StandardProfile::Buttress(b) => {
+                let d = b.major_diameter();
+                vec![
+                    Dimension::mm("major diameter d", d),
+                    Dimension::mm("pitch diameter d2", d - Buttress::OVERLAP * pitch),
+                    Dimension::mm(
+                        "minor diameter d3",
+                        d - 2.0 * Buttress::THREAD_HEIGHT * pitch,
+                    ),
+                    Dimension::mm("thread overlap H1", Buttress::OVERLAP * pitch),
+                    Dimension::mm("thread height h3", Buttress::THREAD_HEIGHT * pitch),
+                    Dimension::mm("crest clearance a_c", Buttress::CREST_CLEARANCE * pitch),
+                    Dimension::deg("load flank", Buttress::LOAD_FLANK_DEG),
+                    Dimension::deg("clearance flank", Buttress::CLEARANCE_FLANK_DEG),
+                    Dimension::mm("crest width e", Buttress::CREST_FLAT * pitch),
+                    Dimension::mm("root radius R", Buttress::ROOT_RADIUS * pitch),
+                ]
+            }
             StandardProfile::BallArc(b) => vec![
                 Dimension::mm("outer diameter", b.outer_diameter()),
                 Dimension::mm("ball diameter D_w", b.ball_diameter()),
@@ -613,6 +648,8 @@ impl StandardProfile {
             StandardProfile::Acme(a) => a.major_diameter(),
             StandardProfile::StubAcme(a) => a.major_diameter(),
             StandardProfile::IsoMetric(m) => m.major_diameter(),
+            StandardProfile::Unified(u) => u.metric().major_diameter(),
+            StandardProfile::Buttress(b) => b.major_diameter(),
             StandardProfile::BallArc(b) => b.outer_diameter(),
             StandardProfile::BallScrew(b) => b.outer_diameter(),
             StandardProfile::Worm(w) => w.tip_diameter(),
@@ -626,6 +663,8 @@ impl StandardProfile {
             StandardProfile::Acme(a) => a.pieces(pitch),
             StandardProfile::StubAcme(a) => a.pieces(pitch),
             StandardProfile::IsoMetric(m) => m.pieces(pitch),
+            StandardProfile::Unified(u) => u.metric().pieces(pitch),
+            StandardProfile::Buttress(b) => b.pieces(pitch),
             StandardProfile::BallArc(b) => b.pieces(pitch),
             StandardProfile::BallScrew(b) => b.pieces(pitch),
             StandardProfile::Worm(w) => w.pieces(pitch),
@@ -651,6 +690,8 @@ impl StandardProfile {
                 Some(radius),
             )?),
             StandardProfile::IsoMetric(_)
+            | StandardProfile::Unified(_)
+            | StandardProfile::Buttress(_)
             | StandardProfile::BallArc(_)
             | StandardProfile::BallScrew(_) => {
                 return Err(StandardError::Negative {
@@ -671,7 +712,12 @@ impl StandardProfile {
                 Ok(0.5 * (d - 0.5 * pitch))
             }
             StandardProfile::StubAcme(a) => Ok(0.5 * (d - a.basic_height(pitch))),
-            StandardProfile::IsoMetric(m) => Ok(0.5 * m.pitch_diameter(pitch)),
+            StandardProfile::IsoMetric(m) | StandardProfile::Unified(Unified { metric: m, .. }) => {
+                Ok(0.5 * m.pitch_diameter(pitch))
+            }
+            StandardProfile::Buttress(_) => Err(StandardError::NoInternalForm {
+                form: "DIN 513's buttress nut",
+            }),
             StandardProfile::BallArc(_) | StandardProfile::BallScrew(_) => {
                 Err(StandardError::NoInternalForm {
                     form: "a ball-screw raceway",
@@ -697,7 +743,9 @@ impl StandardProfile {
     /// The metric thread is the exception: ISO 68-1's nut is the basic profile, its root at
     /// `D = d`, not the screw's rounded root mirrored ([`IsoMetric::internal_pieces`]).
     pub fn internal_pieces(&self, pitch: f64) -> Result<Vec<AxialPiece>, StandardError> {
-        if let StandardProfile::IsoMetric(m) = self {
+        if let StandardProfile::IsoMetric(m) | StandardProfile::Unified(Unified { metric: m, .. }) =
+            self
+        {
             return m.internal_pieces(pitch);
         }
         let about = self.pitch_line_radius(pitch)?;
@@ -741,7 +789,7 @@ impl StandardProfile {
                     "thread height",
                 ],
             ),
-            StandardProfile::IsoMetric(m) => {
+            StandardProfile::IsoMetric(m) | StandardProfile::Unified(Unified { metric: m, .. }) => {
                 let h1 = 0.625 * IsoMetric::fundamental_height(pitch);
                 return Ok(vec![
                     Dimension::mm("major diameter D", d),
@@ -750,7 +798,8 @@ impl StandardProfile {
                     Dimension::mm("thread height H1", h1),
                 ]);
             }
-            StandardProfile::BallArc(_)
+            StandardProfile::Buttress(_)
+            | StandardProfile::BallArc(_)
             | StandardProfile::BallScrew(_)
             | StandardProfile::Worm(_) => unreachable!("pitch_line_radius refused it"),
         };

@@ -57,3 +57,22 @@ pub(super) fn list(values: impl IntoIterator<Item = f64>) -> String {
         .collect::<Vec<_>>()
         .join(", ")
 }
+
+/// A size in inches: a decimal (`0.5`, `.500`), a fraction (`1/2`) or a whole number and a
+/// fraction (`1 1/2`, written `1-1/2` too).
+pub(super) fn size_inches(size: &str) -> Result<f64, String> {
+    let fraction = |word: &str| -> Result<f64, String> {
+        match word.split_once('/') {
+            Some((num, den)) => Ok(number(num, "size (in)")? / number(den, "size (in)")?),
+            None => number(word, "size (in)"),
+        }
+    };
+    let words: Vec<&str> = size.split_whitespace().collect();
+    match words.as_slice() {
+        [one] => fraction(one),
+        [whole, part] if part.contains('/') && !whole.contains('/') => {
+            Ok(number(whole, "size (in)")? + fraction(part)?)
+        }
+        _ => Err(format!("the size `{size}` is not a size in inches")),
+    }
+}
