@@ -43,6 +43,7 @@ fn read_10_000_entities(bencher: Bencher) {
         section: Section::Transverse,
         p: 40.0 / std::f64::consts::TAU,
         starts: 1,
+        material: whirl::geometry::profile::Material::Inside,
     };
     bencher.bench(|| {
         let parsed = drawing::read(black_box(&bytes)).unwrap();

@@ -1019,13 +1019,6 @@ impl JobFile {
                 "{key} does not go with dxf: a drawing is exact and gives the whole section"
             )));
         }
-        if self.groove.material() == Material::Outside {
-            return Err(JobError::ProfileSpec(
-                "a drawing is read as a screw's section (the groove below the crest line): \
-                 give a nut's axial section as points (section = \"axial\")"
-                    .into(),
-            ));
-        }
         let path = dir.join(file);
         let bytes = std::fs::read(&path).map_err(|error| JobError::Read {
             path: path.clone(),
@@ -1050,6 +1043,7 @@ impl JobFile {
             },
             p: self.groove.p(),
             starts: self.groove.starts,
+            material: self.groove.material(),
         };
         let parsed = drawing::read(&bytes).map_err(drawing_err)?;
         drawing::profile(&parsed, &options).map_err(drawing_err)

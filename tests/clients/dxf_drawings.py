@@ -30,7 +30,7 @@ import ezdxf
 
 OUT = sys.argv[1]
 LAYER = "GROOVE"
-manifest = {"good": [], "bad": []}
+manifest = {"good": [], "bad": [], "nut": []}
 
 
 def new(version, insunits=4):
@@ -200,6 +200,59 @@ def trapezoid(version, kind):
     )
 
 
+NUT_OUTER = 30.0
+
+
+def mirrored(item):
+    """An item reflected about the pitch line rho = d2/2 (ISO 2904's nut is the screw's
+    section mirrored there): the arc's turn reverses, so DXF's counter-clockwise arc runs
+    between the mirrored end and start angles."""
+    about = (D - P / 2.0) / 2.0
+    m = lambda pt: (pt[0], 2.0 * about - pt[1])
+    if item[0] == "line":
+        return ("line", m(item[1]), m(item[2]))
+    return ("arc", m(item[1]), item[2], -item[4] % 360.0, -item[3] % 360.0, m(item[5]), m(item[6]))
+
+
+def nut_outline():
+    """The closed half-section of the Tr 40x7 nut: PITCHES periods along the bore, out to
+    the nut's outer radius and back."""
+    items = []
+    start = -P / 2.0
+    for k in range(PITCHES):
+        items.extend(mirrored(it) for it in trapezoid_period(start + P * k))
+    end = start + P * PITCHES
+    bore = items[0][1][1]
+    items.append(("line", (end, bore), (end, NUT_OUTER)))
+    items.append(("line", (end, NUT_OUTER), (start, NUT_OUTER)))
+    items.append(("line", (start, NUT_OUTER), (start, bore)))
+    return items
+
+
+def nut(kind):
+    doc = new("R2018")
+    msp = doc.modelspace()
+    items = nut_outline()
+    if kind == "LINE":
+        for it in items:
+            if it[0] == "line":
+                msp.add_line(it[1], it[2], dxfattribs=attribs())
+            else:
+                msp.add_arc(it[1], it[2], it[3], it[4], dxfattribs=attribs())
+    else:
+        # The mirrored arcs run clockwise along the outline: their bulges are negative.
+        msp.add_lwpolyline(
+            [(it[1 if it[0] == "line" else 5][0], it[1 if it[0] == "line" else 5][1], 0, 0,
+              -bulge(it)) for it in items],
+            format="xyseb",
+            close=True,
+            dxfattribs=attribs(),
+        )
+    name = "nut-%s.dxf" % kind.lower()
+    save(doc, name)
+    manifest["nut"].append({"file": name, "kind": kind})
+
+
 # --- malformed drawings -------------------------------------------------------------------
 # A transverse groove of two starts (period 180 deg): a crest arc of radius 10 about the axis
 # from 0 to 150 deg, a flank down to radius 8 at 165 deg, and back up to 180 deg.
@@ -280,6 +333,8 @@ def good_v(msp):
 
 def write_all():
     eccentric_points()
+    for kind in ["LINE", "LWPOLYLINE"]:
+        nut(kind)
     for kind in ["CIRCLE", "ARC", "LWPOLYLINE", "POLYLINE", "SPLINE"]:
         eccentric("R2018", kind)
     for kind in ["CIRCLE", "ARC", "POLYLINE"]:

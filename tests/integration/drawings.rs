@@ -39,6 +39,18 @@ fn trapezoid_job(profile: &str) -> String {
     )
 }
 
+/// The trapezoidal nut example's job with its `[groove.profile]` replaced by `profile`.
+fn nut_job(profile: &str) -> String {
+    let text = std::fs::read_to_string(util::example("trapezoidal-nut")).unwrap();
+    let start = text.find("[groove.profile]").unwrap();
+    let end = text.find("[tool]").unwrap();
+    format!(
+        "{}[groove.profile]\n{profile}\n\n{}",
+        &text[..start],
+        &text[end..]
+    )
+}
+
 fn load(dir: &Path, name: &str, text: &str) -> Result<Job, String> {
     let path = util::write(dir, name, text);
     Job::load(&path).map_err(|e| e.to_string())
@@ -181,6 +193,28 @@ fn ezdxf_drawings_of_every_entity_kind_plan_as_the_same_geometry() {
     }
     let all = ["ARC", "CIRCLE", "LINE", "LWPOLYLINE", "POLYLINE", "SPLINE"];
     assert_eq!(kinds.into_iter().collect::<Vec<_>>(), all);
+}
+
+#[test]
+fn an_ezdxf_drawing_of_a_nut_plans_as_its_standard_form() {
+    // The closed half-section of the Tr 40x7 nut, three pitches along the bore out to the
+    // nut's outer radius: its groove is the part above the bore, and it is the same groove
+    // as the example's, which names the form by the standard.
+    let Some((dir, manifest)) = drawings() else {
+        return;
+    };
+    let dir = dir.path();
+    let machine = MachineProfile::load(&util::root().join("machine-profiles/sim.toml")).unwrap();
+    let reference = Job::load(&util::example("trapezoidal-nut")).unwrap();
+    let nuts = manifest["nut"].as_array().unwrap();
+    assert_eq!(nuts.len(), 2);
+    for case in nuts {
+        let file = case["file"].as_str().unwrap();
+        let spec = format!("section = \"axial\"\ndxf = \"{file}\"\nlayer = \"GROOVE\"");
+        let drawn =
+            load(dir, "nut.toml", &nut_job(&spec)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        same_program(&drawn, &reference, &machine, file);
+    }
 }
 
 #[test]

@@ -281,16 +281,3 @@ fn a_capital_class_designation_makes_the_groove_a_nut_and_a_job_saying_otherwise
     let e = designated("internal = false").unwrap_err();
     assert!(e.to_string().contains("groove.internal"), "{e}");
 }
-
-#[test]
-fn a_nut_given_by_a_drawing_is_refused_for_its_points() {
-    // A drawing is read as a screw's section (the groove below the crest line).
-    let e = nut(|t| {
-        t.replace(
-            "standard = \"trapezoidal\"\nmajor_diameter = 40.0\nroot_radius = 0.5",
-            "dxf = \"groove.dxf\"",
-        )
-    })
-    .unwrap_err();
-    assert!(e.to_string().contains("section = \"axial\""), "{e}");
-}

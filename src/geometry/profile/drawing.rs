@@ -30,7 +30,7 @@
 mod chain;
 mod entities;
 
-use super::Profile;
+use super::{Material, Profile};
 use glam::DVec2;
 use std::fmt;
 
@@ -115,6 +115,10 @@ pub struct Options {
     pub p: f64,
     /// Number of starts.
     pub starts: u32,
+    /// Which side of the groove the material lies: inside for a screw, whose closed outline
+    /// gives the groove below its crest line; outside for a nut, whose outline gives the
+    /// groove above its bore.
+    pub material: Material,
 }
 
 /// An entity as a CAD program shows it: its kind, handle and layer, and for a polyline, which
@@ -350,7 +354,7 @@ pub fn profile(drawing: &Drawing, options: &Options) -> Result<Profile, DrawingE
         Section::Axial => options.p.abs() * std::f64::consts::TAU / f64::from(options.starts),
     };
     let outline = chain::chain(curves, options.section)?;
-    let ordered = chain::one_period(outline, options.section, period)?;
+    let ordered = chain::one_period(outline, options.section, period, options.material)?;
     Ok(chain::pieces(ordered, options))
 }
 

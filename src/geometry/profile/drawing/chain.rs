@@ -246,6 +246,7 @@ pub(super) fn one_period(
     outline: Outline,
     section: Section,
     period: f64,
+    material: Material,
 ) -> Result<Vec<Curve>, DrawingError> {
     let Outline { mut curves, closed } = outline;
     let total_reversed = {
@@ -293,15 +294,18 @@ pub(super) fn one_period(
         return Ok(curves);
     }
     // A closed outline: walk one period from a crest point, the way the phase increases.
+    // A screw's crest is its outermost radius; a nut's (its bore) its innermost.
     let n = curves.len();
-    let crest = curves
-        .iter()
-        .map(|c| radius(c.shape.at(0.0), section))
-        .fold(f64::NEG_INFINITY, f64::max);
+    let sign = material.sign();
+    let crest = sign
+        * curves
+            .iter()
+            .map(|c| sign * radius(c.shape.at(0.0), section))
+            .fold(f64::NEG_INFINITY, f64::max);
     // In order of phase, so that the period taken does not depend on where the drawing's
     // outline happens to start: the crest point with the least z, or polar angle from 0.
     let mut candidates: Vec<usize> = (0..n)
-        .filter(|&i| radius(curves[i].shape.at(0.0), section) >= crest - JOIN)
+        .filter(|&i| (radius(curves[i].shape.at(0.0), section) - crest).abs() <= JOIN)
         .collect();
     let key = |i: &usize| {
         let ph = phase(curves[*i].shape.at(0.0), section);
@@ -470,5 +474,5 @@ pub(super) fn pieces(curves: Vec<Curve>, options: &Options) -> Profile {
                 .collect()
         }
     };
-    Profile::joined(smooth, polar_period, Material::Inside)
+    Profile::joined(smooth, polar_period, options.material)
 }

@@ -40,6 +40,7 @@ fn options(section: Section, p: f64, starts: u32) -> Options {
         section,
         p,
         starts,
+        material: Material::Inside,
     }
 }
 
