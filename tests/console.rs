@@ -1510,8 +1510,16 @@ fn requests_from_other_origins_and_hosts_change_nothing_and_are_said() {
         let answer = serve.get(&path);
         assert_eq!(answer.status, 405, "GET {button}: {}", answer.body);
     }
-    // Reading under a rebound name is refused too: the page, its key, the runs.
-    for path in ["/", "/api/session", "/api/runs", "/api/events"] {
+    // Reading under a rebound name is refused too: the page, its key, the runs, the jobs and
+    // what a job's profile shows.
+    for path in [
+        "/",
+        "/api/session",
+        "/api/runs",
+        "/api/events",
+        "/api/jobs",
+        "/api/profile?job=job.toml",
+    ] {
         let answer = serve.get_with(path, &[("Host", &rebound)]);
         assert_eq!(answer.status, 403, "{path}: {}", answer.body);
         assert!(!answer.body.contains(&serve.key), "{path}");
