@@ -5,7 +5,10 @@
 //! (or a broken connection) the context is dropped and a new connection made, with a
 //! backoff: a late answer on the old connection would otherwise be read as the answer to the
 //! next request. The writer then re-sends the same request, which the map makes idempotent,
-//! so a lost answer neither repeats nor skips a segment. Exception answers go to the writer,
+//! so a lost answer neither repeats nor skips a segment. A serial line is one wire however
+//! often the port is reopened: its input is cleared on opening, and an answer that is not
+//! the request's but the one before it's (a late answer, or one the line delivered twice)
+//! is taken for a lost answer in the same way, not for a wrong one. Exception answers go to the writer,
 //! which names them; a full ring is the writer's back-pressure (it waits on `TAIL`).
 //!
 //! The writer's clock is the wall clock times [`ModbusOptions::clock_scale`]: 1 for a
@@ -432,6 +435,8 @@ impl Run<'_> {
         // `None` once the writer has given up on a request: no new connection is made for it.
         let mut ctx = Some(connect(link, options).await?);
         *connected = true;
+        // The request sent before the one outstanding: a late answer answers it.
+        let mut previous: Option<Request> = None;
         while !self.writer.is_finished() {
             if let Some(error) = &self.log.failed {
                 // The log is gone: the controller is held before the run ends with it.
@@ -452,7 +457,21 @@ impl Run<'_> {
                             _ => None,
                         },
                     );
+                    let late = match &answer {
+                        Ok(Ok(Ok(response))) if !request.is_answered_by(response) => previous
+                            .as_ref()
+                            .filter(|before| before.is_answered_by(response))
+                            .map(|before| {
+                                format!(
+                                    "answered {response:?}, the answer to {before}, late on \
+                                     the line"
+                                )
+                            }),
+                        _ => None,
+                    };
+                    previous = Some(request.clone());
                     let lost = match answer {
+                        _ if late.is_some() => late,
                         Ok(Ok(answer)) => {
                             self.writer.response(answer);
                             None
@@ -762,6 +781,10 @@ async fn open(link: &ModbusLink, unit: u8) -> std::io::Result<Context> {
         ModbusLink::Rtu { path, baud } => {
             let port = tokio_serial::new(path, *baud)
                 .open_native_async()
+                .map_err(std::io::Error::other)?;
+            // What the line delivered before, late answers included, is no answer to what
+            // this connection will ask.
+            tokio_serial::SerialPort::clear(&port, tokio_serial::ClearBuffer::Input)
                 .map_err(std::io::Error::other)?;
             Ok(tokio_modbus::client::rtu::attach_slave(port, Slave(unit)))
         }

@@ -30,7 +30,7 @@ use whirl::program::{Move, Position, Program};
 use whirl::protocol::modbus::map::{AlarmCode, WordOrder};
 use whirl::protocol::modbus::{Exception, WriterError, WriterOptions};
 use whirl::transport::modbus::{stream_modbus, ModbusLink, ModbusOptions, ModbusOutcome};
-use whirl_sim::modbus::serve::{serve_tcp, ClockOptions, SharedBank};
+use whirl_sim::modbus::serve::{serve_rtu, serve_tcp, ClockOptions, SharedBank};
 use whirl_sim::modbus::{Bank, BankOptions};
 use whirl_sim::{Controller, ControllerOptions, Event};
 
@@ -658,6 +658,111 @@ async fn an_answer_that_does_not_echo_the_write_fails_the_stream() {
         failure.to_string(),
         "FC06 write 0x0000 to register 32: answered WriteSingle { address: 32, value: 1 }"
     );
+}
+
+/// The length of the Modbus RTU answer frame at the start of `bytes`, once its length can be
+/// told: unit and function code, then an FC03's byte count and registers, an FC06's or
+/// FC16's four bytes, or an exception's code; and the CRC (Modbus over serial line, 2.5.1).
+fn rtu_answer_len(bytes: &[u8]) -> Option<usize> {
+    let function = *bytes.get(1)?;
+    Some(match function {
+        0x03 => 3 + usize::from(*bytes.get(2)?) + 2,
+        0x06 | 0x10 => 8,
+        f if f & 0x80 != 0 => 5,
+        other => panic!("an answer of function {other:#04x}"),
+    })
+}
+
+/// Relays bytes between whirl's end of a serial line (`bridge`, a pty master) and the
+/// simulator's (`controller`), answer frame by answer frame, and delivers one FC06 answer
+/// twice: the copy once the bridge has sent its next request, when that is an FC06 too
+/// (the first such pair). A late answer, as a controller that answered a request twice or a
+/// line that echoes gives one; a copy that arrived before the next request was sent,
+/// tokio-modbus would drop itself with whatever else waits in its buffer. Says whether it
+/// did.
+async fn duplicating_relay(
+    mut bridge: tokio_serial::SerialStream,
+    mut controller: tokio_serial::SerialStream,
+    duplicated: &mut bool,
+) -> std::io::Result<()> {
+    let (mut asked, mut chunk) = ([0u8; 512], [0u8; 512]);
+    let (mut answers, mut last_fc06): (Vec<u8>, Option<Vec<u8>>) = (Vec::new(), None);
+    loop {
+        tokio::select! {
+            n = bridge.read(&mut asked) => {
+                let n = n?;
+                let copy = last_fc06.take();
+                if let (Some(frame), false, Some(0x06)) = (copy, *duplicated, asked[..n].get(1)) {
+                    bridge.write_all(&frame).await?;
+                    *duplicated = true;
+                }
+                controller.write_all(&asked[..n]).await?;
+            }
+            n = controller.read(&mut chunk) => {
+                answers.extend_from_slice(&chunk[..n?]);
+                while let Some(len) = rtu_answer_len(&answers).filter(|&len| answers.len() >= len) {
+                    let frame: Vec<u8> = answers.drain(..len).collect();
+                    bridge.write_all(&frame).await?;
+                    if frame[1] == 0x06 {
+                        last_fc06 = Some(frame);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Modbus over serial line has no transaction number: an FC06 answer delivered twice is
+/// read as the answer to the bridge's next request. That copy answers the request before,
+/// not this one, so the bridge takes it for a lost answer, opens the line again (clearing
+/// what waits on it) and re-sends; the controller still runs each segment once. (It once
+/// ended the stream: "FC06 write to register 34: answered WriteSingle { address: 33, … }".)
+#[tokio::test]
+async fn an_answer_delivered_twice_on_a_serial_line_is_skipped_and_no_segment_is_lost() {
+    let (segments, moving) = program(120);
+    let bank = bank(BankOptions::default().slots);
+    let clock = ClockOptions {
+        time_scale: MODBUS_TIME_SCALE,
+        max_step: Some(whirl::judge::dry_run::SIM_MAX_STEP),
+        ..ClockOptions::default()
+    };
+    let (server_end, relay_controller) = tokio_serial::SerialStream::pair().unwrap();
+    let (relay_bridge, bridge_end) = tokio_serial::SerialStream::pair().unwrap();
+    let path = tokio_serial::SerialPort::name(&bridge_end).unwrap();
+    let options = ModbusOptions {
+        writer: WriterOptions {
+            max_retries: RETRIES,
+            ..WriterOptions::default()
+        },
+        timeout: TIMEOUT,
+        backoff: Duration::from_millis(5),
+        clock_scale: MODBUS_TIME_SCALE,
+        ..ModbusOptions::default()
+    };
+    let link = ModbusLink::Rtu {
+        path,
+        baud: 115_200,
+    };
+    let (mut events, mut duplicated) = (Vec::new(), false);
+    let mut log = ExecLog::discard();
+    let outcome = {
+        let serving = serve_rtu(server_end, Arc::clone(&bank), clock, |e| {
+            events.push(e.clone())
+        });
+        let relaying = duplicating_relay(relay_bridge, relay_controller, &mut duplicated);
+        let streaming =
+            tokio::time::timeout(LIMIT, stream_modbus(&link, segments, options, &mut log));
+        tokio::select! {
+            streamed = streaming => streamed.expect("done in time").expect("the stream runs"),
+            ended = serving => panic!("the simulator's server ended: {ended:?}"),
+            ended = relaying => panic!("the relay ended: {ended:?}"),
+        }
+    };
+    drop(bridge_end);
+    events.extend(bank.lock().unwrap().take_events());
+    assert!(duplicated, "the relay delivered an answer twice");
+    assert_each_segment_once(&outcome, &events, &moving);
+    assert!(outcome.reconnects >= 1, "{outcome:?}");
 }
 
 /// A third-party Modbus client (pymodbus, `tests/clients/modbus_status.py`), sharing no

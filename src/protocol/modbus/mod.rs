@@ -113,6 +113,32 @@ pub enum Request {
     },
 }
 
+impl Request {
+    /// Whether `response` can be this request's answer: a read's as many registers as it
+    /// asked for, an FC06's echo of its address and value, an FC16's address and count. (A
+    /// read cannot tell its answer from another read's of the same length: Modbus RTU
+    /// carries no transaction number.)
+    pub fn is_answered_by(&self, response: &Response) -> bool {
+        match (self, response) {
+            (Request::ReadHolding { count, .. }, Response::ReadHolding(values)) => {
+                values.len() == usize::from(*count)
+            }
+            (
+                Request::WriteSingle { address, value },
+                Response::WriteSingle {
+                    address: a,
+                    value: v,
+                },
+            ) => a == address && v == value,
+            (
+                Request::WriteMultiple { address, values },
+                Response::WriteMultiple { address: a, count },
+            ) => a == address && usize::from(*count) == values.len(),
+            _ => false,
+        }
+    }
+}
+
 impl fmt::Display for Request {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -824,24 +850,7 @@ impl RingWriter {
     }
 
     fn answered(&mut self, o: Outstanding, response: Response) {
-        let fits = match (&o.request, &response) {
-            (Request::ReadHolding { count, .. }, Response::ReadHolding(values)) => {
-                values.len() == usize::from(*count)
-            }
-            (
-                Request::WriteSingle { address, value },
-                Response::WriteSingle {
-                    address: a,
-                    value: v,
-                },
-            ) => a == address && v == value,
-            (
-                Request::WriteMultiple { address, values },
-                Response::WriteMultiple { address: a, count },
-            ) => a == address && usize::from(*count) == values.len(),
-            _ => false,
-        };
-        if !fits {
+        if !o.request.is_answered_by(&response) {
             return self.fail(WriterError::BadResponse {
                 request: o.request,
                 response,
