@@ -168,10 +168,9 @@ def bulge(item):
     return math.tan(math.radians(sweep) / 4.0)
 
 
-def trapezoid(version, kind):
-    doc = new(version)
-    msp = doc.modelspace()
-    items = trapezoid_outline()
+def draw(msp, items, kind, turn=1.0):
+    """A closed outline of items as LINEs and ARCs, one LWPOLYLINE or one POLYLINE; `turn`
+    -1 where the arcs run clockwise along the outline (their bulges negative)."""
     if kind == "LINE":
         # Lines and arcs, as separate entities.
         for it in items:
@@ -182,7 +181,7 @@ def trapezoid(version, kind):
     elif kind == "LWPOLYLINE":
         msp.add_lwpolyline(
             [(it[1 if it[0] == "line" else 5][0], it[1 if it[0] == "line" else 5][1], 0, 0,
-              bulge(it)) for it in items],
+              turn * bulge(it)) for it in items],
             format="xyseb",
             close=True,
             dxfattribs=attribs(),
@@ -191,8 +190,13 @@ def trapezoid(version, kind):
         poly = msp.add_polyline2d([], dxfattribs=attribs())
         for it in items:
             start = it[1] if it[0] == "line" else it[5]
-            poly.append_vertex(start, dxfattribs={"bulge": bulge(it)})
+            poly.append_vertex(start, dxfattribs={"bulge": turn * bulge(it)})
         poly.close(True)
+
+
+def trapezoid(version, kind):
+    doc = new(version)
+    draw(doc.modelspace(), trapezoid_outline(), kind)
     name = "trapezoid-%s-%s.dxf" % (kind.lower(), version)
     save(doc, name)
     manifest["good"].append(
@@ -231,23 +235,8 @@ def nut_outline():
 
 def nut(kind):
     doc = new("R2018")
-    msp = doc.modelspace()
-    items = nut_outline()
-    if kind == "LINE":
-        for it in items:
-            if it[0] == "line":
-                msp.add_line(it[1], it[2], dxfattribs=attribs())
-            else:
-                msp.add_arc(it[1], it[2], it[3], it[4], dxfattribs=attribs())
-    else:
-        # The mirrored arcs run clockwise along the outline: their bulges are negative.
-        msp.add_lwpolyline(
-            [(it[1 if it[0] == "line" else 5][0], it[1 if it[0] == "line" else 5][1], 0, 0,
-              -bulge(it)) for it in items],
-            format="xyseb",
-            close=True,
-            dxfattribs=attribs(),
-        )
+    # The mirrored arcs run clockwise along the outline.
+    draw(doc.modelspace(), nut_outline(), kind, turn=-1.0)
     name = "nut-%s.dxf" % kind.lower()
     save(doc, name)
     manifest["nut"].append({"file": name, "kind": kind})

@@ -293,9 +293,10 @@ async fn served<T, F: Future<Output = T>>(
     }
 }
 
-/// Streams `segments` to `addr` with whirl's Modbus transport, at the simulator's clock.
-async fn stream_to(addr: SocketAddr, segments: Vec<Segment>) -> ModbusOutcome {
-    let options = ModbusOptions {
+/// The bridge's options in these tests: [`TIMEOUT`], [`RETRIES`], a short backoff, the
+/// simulator's clock.
+fn options() -> ModbusOptions {
+    ModbusOptions {
         writer: WriterOptions {
             max_retries: RETRIES,
             ..WriterOptions::default()
@@ -304,7 +305,12 @@ async fn stream_to(addr: SocketAddr, segments: Vec<Segment>) -> ModbusOutcome {
         backoff: Duration::from_millis(5),
         clock_scale: MODBUS_TIME_SCALE,
         ..ModbusOptions::default()
-    };
+    }
+}
+
+/// Streams `segments` to `addr` with whirl's Modbus transport, at the simulator's clock.
+async fn stream_to(addr: SocketAddr, segments: Vec<Segment>) -> ModbusOutcome {
+    let options = options();
     stream_modbus(
         &ModbusLink::Tcp(addr),
         segments,
@@ -729,16 +735,7 @@ async fn an_answer_delivered_twice_on_a_serial_line_is_skipped_and_no_segment_is
     let (server_end, relay_controller) = tokio_serial::SerialStream::pair().unwrap();
     let (relay_bridge, bridge_end) = tokio_serial::SerialStream::pair().unwrap();
     let path = tokio_serial::SerialPort::name(&bridge_end).unwrap();
-    let options = ModbusOptions {
-        writer: WriterOptions {
-            max_retries: RETRIES,
-            ..WriterOptions::default()
-        },
-        timeout: TIMEOUT,
-        backoff: Duration::from_millis(5),
-        clock_scale: MODBUS_TIME_SCALE,
-        ..ModbusOptions::default()
-    };
+    let options = options();
     let link = ModbusLink::Rtu {
         path,
         baud: 115_200,

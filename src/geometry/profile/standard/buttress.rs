@@ -3,7 +3,7 @@
 //! `S 48x16 P8 LH`, `S 48x8-7h`.
 
 use super::designation::{Designation, DesignationError};
-use super::reading::{left_hand, number, refuse, starts};
+use super::reading::{lead_screw_size, refuse, starts, LeadScrewSize};
 use super::{positive, AxialPiece, StandardError, StandardProfile};
 use glam::DVec2;
 
@@ -156,23 +156,12 @@ fn read_size(rest: &str) -> Result<Designation, String> {
             ))
         }
     };
-    let body: String = body
-        .chars()
-        .filter(|c| !c.is_whitespace())
-        .map(|c| if c == '×' || c == 'X' { 'x' } else { c })
-        .collect();
-    let (body, left_hand) = left_hand(&body)?;
-    let Some((d, pitches)) = body.split_once('x') else {
-        return Err("write the size as diameter x pitch, as in `S 48x8`".into());
-    };
-    let d = number(d, "nominal diameter")?;
-    let (lead, pitch) = match pitches.split_once('P') {
-        Some((lead, pitch)) => (number(lead, "lead")?, number(pitch, "pitch")?),
-        None => {
-            let p = number(pitches, "pitch")?;
-            (p, p)
-        }
-    };
+    let LeadScrewSize {
+        d,
+        lead,
+        pitch,
+        left_hand,
+    } = lead_screw_size(body, "S 48x8")?;
     let starts = starts(lead, pitch, "mm")?;
     let form = Buttress::new(d).map_err(|e| e.to_string())?;
     // Refuse here a size whose form cannot be drawn, naming the designation.

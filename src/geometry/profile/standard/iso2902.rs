@@ -2,7 +2,7 @@
 //! `Tr 40x7-7H`, read against ISO 2902's table of diameters and pitches.
 
 use super::designation::{Designation, DesignationError};
-use super::reading::{left_hand, list, number, refuse, starts};
+use super::reading::{lead_screw_size, list, refuse, starts, LeadScrewSize};
 use super::{IsoTrapezoidal, StandardProfile};
 
 /// ISO 2902's diameter–pitch combinations (ISO metric trapezoidal screw threads, general
@@ -100,23 +100,12 @@ pub fn read(text: &str) -> Option<Result<Designation, DesignationError>> {
 /// The size, pitch, hand and class after `Tr`.
 fn read_size(rest: &str) -> Result<Designation, String> {
     let (body, class) = split_class(rest)?;
-    let body: String = body
-        .chars()
-        .filter(|c| !c.is_whitespace() && *c != '(' && *c != ')')
-        .map(|c| if c == '×' || c == 'X' { 'x' } else { c })
-        .collect();
-    let (body, left_hand) = left_hand(&body)?;
-    let Some((d, pitches)) = body.split_once('x') else {
-        return Err("write the size as diameter x pitch, as in `Tr 40x7`".into());
-    };
-    let d = number(d, "nominal diameter")?;
-    let (lead, pitch) = match pitches.split_once('P') {
-        Some((lead, pitch)) => (number(lead, "lead")?, number(pitch, "pitch")?),
-        None => {
-            let p = number(pitches, "pitch")?;
-            (p, p)
-        }
-    };
+    let LeadScrewSize {
+        d,
+        lead,
+        pitch,
+        left_hand,
+    } = lead_screw_size(body, "Tr 40x7")?;
     let Some((_, table)) = DIAMETERS_AND_PITCHES.iter().find(|(size, _)| *size == d) else {
         return Err(format!(
             "ISO 2902 has no nominal diameter {d} mm; its diameters near it are {}",

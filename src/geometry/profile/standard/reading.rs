@@ -76,3 +76,45 @@ pub(super) fn size_inches(size: &str) -> Result<f64, String> {
         _ => Err(format!("the size `{size}` is not a size in inches")),
     }
 }
+
+/// A lead screw's size as ISO and DIN write it (ISO 2903 for Tr, DIN 513 for S).
+pub(super) struct LeadScrewSize {
+    /// Nominal diameter, mm.
+    pub d: f64,
+    /// Lead, mm: the pitch, or `Ph` for several starts.
+    pub lead: f64,
+    /// Pitch, mm.
+    pub pitch: f64,
+    /// `LH` after it.
+    pub left_hand: bool,
+}
+
+/// Reads `d x P`, or `d x Ph P P` for several starts (also `d x Ph(P P)`), with `LH` after
+/// it, the spaces and the `×` a drawing writes; `example` shows the form in a refusal.
+pub(super) fn lead_screw_size(body: &str, example: &str) -> Result<LeadScrewSize, String> {
+    let body: String = body
+        .chars()
+        .filter(|c| !c.is_whitespace() && *c != '(' && *c != ')')
+        .map(|c| if c == '×' || c == 'X' { 'x' } else { c })
+        .collect();
+    let (body, left_hand) = left_hand(&body)?;
+    let Some((d, pitches)) = body.split_once('x') else {
+        return Err(format!(
+            "write the size as diameter x pitch, as in `{example}`"
+        ));
+    };
+    let d = number(d, "nominal diameter")?;
+    let (lead, pitch) = match pitches.split_once('P') {
+        Some((lead, pitch)) => (number(lead, "lead")?, number(pitch, "pitch")?),
+        None => {
+            let p = number(pitches, "pitch")?;
+            (p, p)
+        }
+    };
+    Ok(LeadScrewSize {
+        d,
+        lead,
+        pitch,
+        left_hand,
+    })
+}

@@ -8,6 +8,25 @@ use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
 const TOL: f64 = 1e-12;
 
+/// The value of the dimension `name` among `dims`.
+pub(super) fn dim(dims: &[Dimension], name: &str) -> f64 {
+    dims.iter()
+        .find(|d| d.name == name)
+        .unwrap_or_else(|| panic!("no {name} in {dims:?}"))
+        .value
+}
+
+/// Each designation of `cases` is refused by its family with words containing the case's.
+pub(super) fn assert_refused(cases: &[(&str, &str)]) {
+    for (text, why) in cases {
+        let said = match designation::parse(text) {
+            Err(e @ designation::DesignationError::Refused { .. }) => e.to_string(),
+            other => panic!("{text}: expected a refusal, got {other:?}"),
+        };
+        assert!(said.contains(why), "{text}: {said}");
+    }
+}
+
 /// Checks the chain conventions every profile must meet; returns a description of the
 /// first violation.
 fn chain_violation(pieces: &[AxialPiece], pitch: f64, crest_rho: f64) -> Option<String> {

@@ -1,15 +1,9 @@
 //! `M` designations against ISO 262's sizes and the basic dimensions of ISO 724 (d2, D1) and
 //! ISO 965-1 / ISO 898-1 (d3), values printed there to three decimals.
 
-use super::super::designation::{parse, DesignationError};
-use super::super::{AxialPiece, Dimension};
-
-fn dim(dims: &[Dimension], name: &str) -> f64 {
-    dims.iter()
-        .find(|d| d.name == name)
-        .unwrap_or_else(|| panic!("no {name} in {dims:?}"))
-        .value
-}
+use super::super::designation::parse;
+use super::super::tests::{assert_refused, dim};
+use super::super::AxialPiece;
 
 #[test]
 fn metric_dimensions_are_iso_724_and_965_values() {
@@ -85,11 +79,5 @@ fn metric_designations_read_and_refuse() {
         ("M20xA", "pitch `A` is not a number"),
         ("M20 LH LH", "LH (left hand) is given twice"),
     ];
-    for (text, why) in cases {
-        let said = match parse(text) {
-            Err(e @ DesignationError::Refused { .. }) => e.to_string(),
-            other => panic!("{text}: expected a refusal, got {other:?}"),
-        };
-        assert!(said.contains(why), "{text}: {said}");
-    }
+    assert_refused(&cases);
 }

@@ -3,14 +3,8 @@
 //! four decimals).
 
 use super::super::designation::{parse, DesignationError};
-use super::super::{Dimension, StandardProfile, MM_PER_INCH};
-
-fn dim(dims: &[Dimension], name: &str) -> f64 {
-    dims.iter()
-        .find(|d| d.name == name)
-        .unwrap_or_else(|| panic!("no {name} in {dims:?}"))
-        .value
-}
+use super::super::tests::{assert_refused, dim};
+use super::super::{StandardProfile, MM_PER_INCH};
 
 #[test]
 fn unified_basic_dimensions_are_b1_1s() {
@@ -68,14 +62,7 @@ fn unified_designations_read_and_refuse() {
         ("1/4 UNC", "size-threads per inch"),
         ("1/4-20 UNC-2A-LH-LH", "twice"),
     ];
-    for (text, why) in refused {
-        match parse(text) {
-            Err(DesignationError::Refused { why: said, .. }) => {
-                assert!(said.contains(why), "{text}: {said}")
-            }
-            other => panic!("{text}: {other:?}"),
-        }
-    }
+    assert_refused(&refused);
     assert!(matches!(
         parse("1/4-20 UNIVERSAL"),
         Err(DesignationError::Unknown { .. })
