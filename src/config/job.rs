@@ -9,7 +9,7 @@ use crate::geometry::profile::drawing::{self, DrawingError};
 use crate::geometry::profile::points::{self, PointsError, Section};
 use crate::geometry::profile::standard::designation::{self, Designation, DesignationError};
 use crate::geometry::profile::standard::{
-    AcmeGeneralPurpose, BallArc, BallScrew, IsoTrapezoidal, Raceway, StandardError,
+    AcmeGeneralPurpose, BallArc, BallScrew, IsoTrapezoidal, LoadFlank, Raceway, StandardError,
     StandardProfile, Worm, WormFlank,
 };
 use crate::geometry::profile::{Material, Profile};
@@ -256,12 +256,26 @@ pub struct ProfileSpec {
     pub pressure_angle_deg: Option<f64>,
     /// Worm: bottom clearance factor c* (default 0.2).
     pub bottom_clearance: Option<f64>,
+    /// Buttress (S): the side of the groove its 3° load flank lies on, `"+z"` (DIN 513's
+    /// drawing, the default) or `"-z"`.
+    pub load_flank: Option<LoadFlankSpec>,
+}
+
+/// `[groove.profile] load_flank`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+pub enum LoadFlankSpec {
+    /// The groove's +z side.
+    #[serde(rename = "+z")]
+    PlusZ,
+    /// The groove's −z side.
+    #[serde(rename = "-z")]
+    MinusZ,
 }
 
 impl ProfileSpec {
     /// The keys that give a standard form its dimensions, each with whether the job sets it:
     /// what points, a drawing or a designation must not be given beside.
-    fn form_keys(&self) -> [(&'static str, bool); 16] {
+    fn form_keys(&self) -> [(&'static str, bool); 17] {
         [
             ("major_diameter", self.major_diameter.is_some()),
             ("root_radius", self.root_radius.is_some()),
@@ -279,6 +293,7 @@ impl ProfileSpec {
             ("diameter_quotient", self.diameter_quotient.is_some()),
             ("pressure_angle_deg", self.pressure_angle_deg.is_some()),
             ("bottom_clearance", self.bottom_clearance.is_some()),
+            ("load_flank", self.load_flank.is_some()),
         ]
     }
 }
@@ -965,11 +980,12 @@ impl JobFile {
             ("mirror", spec.mirror.is_some()),
             ("fit_tolerance", spec.fit_tolerance.is_some()),
         ];
-        // A designation leaves the root radius to the maker: every other dimension is its.
+        // A designation leaves the root radius to the maker, and a buttress's load flank to
+        // the drawing: every other dimension is its.
         let dimensions = spec
             .form_keys()
             .into_iter()
-            .filter(|(key, _)| *key != "root_radius");
+            .filter(|(key, _)| !["root_radius", "load_flank"].contains(key));
         if let Some((key, _)) = others.into_iter().chain(dimensions).find(|(_, set)| *set) {
             return Err(JobError::ProfileSpec(format!(
                 "{key} does not go with designation: the designation fixes the form (only \
@@ -979,6 +995,22 @@ impl JobFile {
         let form = match spec.root_radius {
             Some(radius) => designation.form.with_root_radius(radius)?,
             None => designation.form,
+        };
+        let form = match (spec.load_flank, form) {
+            (None, form) => form,
+            (Some(side), StandardProfile::Buttress(b)) => {
+                StandardProfile::Buttress(b.with_load_flank(match side {
+                    LoadFlankSpec::PlusZ => LoadFlank::PlusZ,
+                    LoadFlankSpec::MinusZ => LoadFlank::MinusZ,
+                }))
+            }
+            (Some(_), _) => {
+                return Err(JobError::ProfileSpec(
+                    "load_flank belongs to a buttress thread (S 48x8), whose 3° load flank it \
+                     places: this designation's form has none"
+                        .into(),
+                ))
+            }
         };
         self.axial(&form)
     }

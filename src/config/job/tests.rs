@@ -130,11 +130,27 @@ fn every_designation_refusal_of_a_job_names_what() {
             "designation = \"Tr 40x7\"\nroot_radius = 3.0",
             "root radius 3 mm is too large",
         ),
+        (
+            "designation = \"Tr 40x7\"\nload_flank = \"-z\"",
+            "load_flank belongs to a buttress thread",
+        ),
+        (
+            "designation = \"S 48x8\"\nload_flank = \"left\"",
+            "unknown variant `left`, expected `+z` or `-z`",
+        ),
     ];
     for (lines, said) in cases {
         let e = profile(lines).unwrap_err().to_string();
         assert!(e.contains(said), "{lines}: {e}");
     }
+    // A standard form given by its dimensions has no load flank to place.
+    let e = with_groove(&format!(
+        "{GROOVE}lead = 7.0\nstarts = 1\nhand = \"right\"\n[groove.profile]\n\
+         standard = \"trapezoidal\"\nmajor_diameter = 40.0\nload_flank = \"-z\"\n"
+    ))
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("load_flank"), "{e}");
     // Without a designation, lead, starts and hand are the job's to give.
     let e = with_groove(&format!(
         "{GROOVE}starts = 1\nhand = \"right\"\n[groove.profile]\nstandard = \"trapezoidal\"\n\
@@ -280,4 +296,38 @@ fn a_capital_class_designation_makes_the_groove_a_nut_and_a_job_saying_otherwise
     assert!((rho_min - 16.5).abs() < 1e-9 && (rho_max - 20.5).abs() < 1e-9);
     let e = designated("internal = false").unwrap_err();
     assert!(e.to_string().contains("groove.internal"), "{e}");
+}
+
+#[test]
+fn a_buttress_designation_puts_its_load_flank_where_the_job_says() {
+    // S 48x8 (DIN 513): crest at 24 mm, d3 = d − 1.73554·P = 34.11568 mm. Where the 3° flank
+    // lies decides which side of the groove the nearly radial wall is on: the point of the
+    // groove's floor is nearer the load flank (the flanks are P − e = 5.889 mm apart at the
+    // crest; the 3° one leans 0.364 mm over the 6.94 mm depth, the 30° one 4.01 mm).
+    let deepest_z = |side: &str| {
+        let job = with_groove(&format!(
+            "{GROOVE}[groove.profile]\ndesignation = \"S 48x8\"\n{side}"
+        ))
+        .unwrap();
+        let (rho_min, rho_max) = job.profile.radius_range();
+        assert!((rho_max - 24.0).abs() < 1e-9 && (2.0 * rho_min - 34.11568).abs() < 2e-4);
+        let form = designation::parse("S 48x8").unwrap().form;
+        let StandardProfile::Buttress(b) = form else {
+            panic!("{form:?}")
+        };
+        let b = match side {
+            "" => b,
+            _ => b.with_load_flank(LoadFlank::MinusZ),
+        };
+        let pieces = b.pieces(8.0).unwrap();
+        pieces
+            .iter()
+            .flat_map(|p| (0..=200).map(move |k| p.eval(p.length() * k as f64 / 200.0).0))
+            .min_by(|a, b| a.x.total_cmp(&b.x))
+            .unwrap()
+            .y
+    };
+    let (plus, minus) = (deepest_z(""), deepest_z("load_flank = \"-z\""));
+    assert!(plus > 1.0, "the floor lies towards +z: {plus}");
+    assert!((plus + minus).abs() < 1e-9, "mirrored: {plus} {minus}");
 }

@@ -18,12 +18,22 @@ use glam::DVec2;
 /// apart at `d`, would meet `(P − e) / (tan 3° + tan 30°) = 1.16896·P` below it, and the arc
 /// stands `R·(cos 13.5° / sin 16.5° − 1) = 0.30119·P` above that point).
 ///
-/// In the section the groove's 3° (load) flank lies on the +z side: the load flank of a
-/// screw that pushes towards +z, as a press spindle or a gun breech drawn with its load to
-/// the right.
+/// Which side of the groove the 3° (load) flank lies on is the drawing's to say
+/// ([`LoadFlank`]): DIN 513 draws it on the right, +z.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Buttress {
     major_diameter: f64,
+    load_flank: LoadFlank,
+}
+
+/// The side of the groove, along the screw's axis, that the 3° load flank lies on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum LoadFlank {
+    /// The groove's +z side (DIN 513's drawing: the load flank on the right).
+    #[default]
+    PlusZ,
+    /// The groove's −z side.
+    MinusZ,
 }
 
 impl Buttress {
@@ -46,7 +56,21 @@ impl Buttress {
     pub fn new(major_diameter: f64) -> Result<Self, StandardError> {
         Ok(Self {
             major_diameter: positive("major diameter d", major_diameter)?,
+            load_flank: LoadFlank::default(),
         })
+    }
+
+    /// The same thread with its load flank on `side`.
+    pub fn with_load_flank(self, side: LoadFlank) -> Buttress {
+        Buttress {
+            load_flank: side,
+            ..self
+        }
+    }
+
+    /// The side its load flank lies on.
+    pub fn load_flank(&self) -> LoadFlank {
+        self.load_flank
     }
 
     /// Nominal (major) diameter d (mm).
@@ -55,8 +79,18 @@ impl Buttress {
     }
 
     /// The screw's axial section of one pitch: the crest flat split at both ends, the
-    /// clearance flank, the root arc, the load flank.
+    /// clearance flank, the root arc, the load flank (the other way round for
+    /// [`LoadFlank::MinusZ`]).
     pub fn pieces(&self, pitch: f64) -> Result<Vec<AxialPiece>, StandardError> {
+        let pieces = self.load_on_plus_z(pitch)?;
+        Ok(match self.load_flank {
+            LoadFlank::PlusZ => pieces,
+            LoadFlank::MinusZ => pieces.into_iter().rev().map(mirror_z).collect(),
+        })
+    }
+
+    /// The section with the load flank on the +z side.
+    fn load_on_plus_z(&self, pitch: f64) -> Result<Vec<AxialPiece>, StandardError> {
         let pitch = positive("pitch", pitch)?;
         let crest = 0.5 * self.major_diameter;
         let depth = Self::THREAD_HEIGHT * pitch;
@@ -109,6 +143,30 @@ impl Buttress {
                 to: DVec2::new(crest, 0.5 * pitch),
             },
         ])
+    }
+}
+
+/// A piece reflected in z about z = 0 and traversed the other way, so that a section
+/// reflected piece by piece, in reverse order, still runs towards +z: a point's angle θ
+/// about an arc's centre becomes −θ.
+fn mirror_z(piece: AxialPiece) -> AxialPiece {
+    let flip = |p: DVec2| DVec2::new(p.x, -p.y);
+    match piece {
+        AxialPiece::Line { from, to } => AxialPiece::Line {
+            from: flip(to),
+            to: flip(from),
+        },
+        AxialPiece::Arc {
+            centre,
+            radius,
+            start,
+            end,
+        } => AxialPiece::Arc {
+            centre: flip(centre),
+            radius,
+            start: -end,
+            end: -start,
+        },
     }
 }
 

@@ -66,7 +66,7 @@ pub mod worm;
 
 pub use ball_arc::BallArc;
 pub use ball_screw::{BallScrew, Raceway};
-pub use buttress::Buttress;
+pub use buttress::{Buttress, LoadFlank};
 pub use metric::IsoMetric;
 pub use trapezoid::{
     asme_b1_5_minor_diameter_allowance, iso2904_crest_clearance, AcmeGeneralPurpose,

@@ -96,3 +96,32 @@ fn the_buttress_nut_is_not_drawn() {
     ));
     assert!(Buttress::new(-1.0).is_err());
 }
+
+#[test]
+fn a_load_flank_on_the_minus_z_side_mirrors_the_section() {
+    let plus = Buttress::new(48.0).unwrap();
+    let minus = plus.with_load_flank(super::LoadFlank::MinusZ);
+    let (a, b) = (plus.pieces(8.0).unwrap(), minus.pieces(8.0).unwrap());
+    let angle = |p: &AxialPiece| {
+        let (s, e) = (p.start(), p.end());
+        ((e.y - s.y) / (e.x - s.x)).abs().atan().to_degrees()
+    };
+    assert!((angle(&b[1]) - 3.0).abs() < 1e-9, "−z flank");
+    assert!((angle(&b[3]) - 30.0).abs() < 1e-9, "+z flank");
+    // Point for point the mirror image, still continuous and running towards +z.
+    for pair in b.windows(2) {
+        assert!(pair[0].end().distance(pair[1].start()) < 1e-12);
+    }
+    for (p, q) in a.iter().zip(b.iter().rev()) {
+        for k in 0..=20 {
+            let s = p.length() * k as f64 / 20.0;
+            let (x, y) = (p.eval(s).0, q.eval(q.length() - s).0);
+            assert!(
+                (x.x - y.x).abs() < 1e-12 && (x.y + y.y).abs() < 1e-12,
+                "{x} {y}"
+            );
+        }
+        let (kp, kq) = (p.eval(0.0).2, q.eval(0.0).2);
+        assert_eq!(kp, kq, "the root stays concave");
+    }
+}
