@@ -18,8 +18,8 @@
 //!
 //! A gap also reads no deeper than −r: a tool that went further than r past Q has its tip
 //! circle beyond Q, and Q's distance to it no longer says how far (a nose set on the wrong
-//! side of a surface, 2r past it, reads as 0 where it went straight in and as −r where its
-//! tip circle crosses the surface). Such a program is refused all the same; its report names
+//! side of a surface, 2r past it, can read as little as 0 where it went straight in, and
+//! −r where its tip circle crosses the surface). Such a program is refused all the same; its report names
 //! where, not how deep.
 //!
 //! The target is sampled over every start and the whole formed length, at axial steps of

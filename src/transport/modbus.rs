@@ -8,8 +8,8 @@
 //! so a lost answer neither repeats nor skips a segment. A serial line is one wire however
 //! often the port is reopened: its input is cleared on opening, and an answer that is not
 //! the request's but the one before it's (a late answer, or one the line delivered twice)
-//! is taken for a lost answer in the same way, not for a wrong one. Exception answers go to the writer,
-//! which names them; a full ring is the writer's back-pressure (it waits on `TAIL`).
+//! is taken for a lost answer in the same way, not for a wrong one. Exception answers go to
+//! the writer, which names them; a full ring is the writer's back-pressure (it waits on `TAIL`).
 //!
 //! The writer's clock is the wall clock times [`ModbusOptions::clock_scale`]: 1 for a
 //! machine, the simulator's time scale in a dry run, so that status polls and watchdog

@@ -68,11 +68,6 @@ impl Buttress {
         }
     }
 
-    /// The side its load flank lies on.
-    pub fn load_flank(&self) -> LoadFlank {
-        self.load_flank
-    }
-
     /// Nominal (major) diameter d (mm).
     pub fn major_diameter(&self) -> f64 {
         self.major_diameter
