@@ -25,8 +25,9 @@ pub struct Sample {
     /// to first order an error δ of the ring's X moves the surface there by `normal.x·δ`, one of
     /// its Z by `normal.z·δ` (kinematics.md: negative is overcut). The ring moving by +x̂
     /// changes a surface point's gap by the outward normal along that shift: internal
-    /// whirling, which cuts on the −X side, cuts deeper with a larger X (normal.x < 0);
-    /// external whirling leaves more (normal.x > 0).
+    /// whirling, which cuts on the −X side, cuts deeper with a larger X (normal.x < 0), and
+    /// so does a bore head, which cuts a nut on the +X side where the normal points to the
+    /// axis; external whirling leaves more (normal.x > 0).
     pub normal: DVec3,
 }
 

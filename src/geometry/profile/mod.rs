@@ -734,6 +734,37 @@ mod tests {
     }
 
     #[test]
+    fn a_nuts_tangent_fillet_joins_make_no_corner() {
+        // ISO 2904 Tr 40x7 nut with root fillets tangent to flanks and root flat: its only
+        // sharp edges are the two bore edges, convex with the material outside, so the
+        // tangent turns clockwise there (the screw's turn counter-clockwise).
+        use standard::{IsoTrapezoidal, StandardProfile};
+        for fillet in [0.5, 0.6, 0.7, 0.9] {
+            let screw = StandardProfile::IsoTrapezoidal(
+                IsoTrapezoidal::new(40.0, Some(fillet), None).unwrap(),
+            );
+            let p = 7.0 / TAU;
+            let pieces = screw.internal_pieces(7.0).unwrap();
+            let prof = Profile::from_axial_of(pieces, p, TAU, Material::Outside);
+            let corners: Vec<(f64, f64)> = prof
+                .pieces
+                .iter()
+                .filter_map(|p| match *p {
+                    Piece::Corner { from, to, .. } => Some((from, to)),
+                    _ => None,
+                })
+                .collect();
+            assert_eq!(corners.len(), 2, "fillet {fillet}: {corners:?}");
+            assert!(corners.iter().all(|(from, to)| to < from), "{corners:?}");
+            assert!(prof.concave_stretches(p, 0.4).is_empty(), "fillet {fillet}");
+            // A nose of 0.6 mm does not fit a 0.5 mm fillet.
+            if fillet == 0.5 {
+                assert!(!prof.concave_stretches(p, 0.6).is_empty());
+            }
+        }
+    }
+
+    #[test]
     fn a_root_arc_tighter_than_the_nose_is_reported() {
         let p = 10.0 / PI;
         let prof = Profile::from_axial(arc_groove(20.0, 20.0, 3.0), p, PI);
