@@ -29,19 +29,12 @@ fn eccentric_job(profile: &str) -> String {
 
 /// The trapezoidal example's job with its `[groove.profile]` replaced by `profile`.
 fn trapezoid_job(profile: &str) -> String {
-    let text = std::fs::read_to_string(util::example("trapezoidal")).unwrap();
-    let start = text.find("[groove.profile]").unwrap();
-    let end = text.find("[tool]").unwrap();
-    format!(
-        "{}[groove.profile]\n{profile}\n\n{}",
-        &text[..start],
-        &text[end..]
-    )
+    example_job("trapezoidal", profile)
 }
 
-/// The trapezoidal nut example's job with its `[groove.profile]` replaced by `profile`.
-fn nut_job(profile: &str) -> String {
-    let text = std::fs::read_to_string(util::example("trapezoidal-nut")).unwrap();
+/// The job of `example` with its `[groove.profile]` replaced by `profile`.
+fn example_job(example: &str, profile: &str) -> String {
+    let text = std::fs::read_to_string(util::example(example)).unwrap();
     let start = text.find("[groove.profile]").unwrap();
     let end = text.find("[tool]").unwrap();
     format!(
@@ -211,8 +204,8 @@ fn an_ezdxf_drawing_of_a_nut_plans_as_its_standard_form() {
     for case in nuts {
         let file = case["file"].as_str().unwrap();
         let spec = format!("section = \"axial\"\ndxf = \"{file}\"\nlayer = \"GROOVE\"");
-        let drawn =
-            load(dir, "nut.toml", &nut_job(&spec)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let drawn = load(dir, "nut.toml", &example_job("trapezoidal-nut", &spec))
+            .unwrap_or_else(|e| panic!("{file}: {e}"));
         same_program(&drawn, &reference, &machine, file);
     }
 }

@@ -4,7 +4,7 @@
 
 use super::designation::{Designation, DesignationError};
 use super::reading::{lead_screw_size, refuse, starts, LeadScrewSize};
-use super::{positive, AxialPiece, StandardError, StandardProfile};
+use super::{mirror_z, positive, AxialPiece, StandardError, StandardProfile};
 use glam::DVec2;
 
 /// DIN 513-1 buttress thread, external (the screw), dimensions in mm.
@@ -138,30 +138,6 @@ impl Buttress {
                 to: DVec2::new(crest, 0.5 * pitch),
             },
         ])
-    }
-}
-
-/// A piece reflected in z about z = 0 and traversed the other way, so that a section
-/// reflected piece by piece, in reverse order, still runs towards +z: a point's angle θ
-/// about an arc's centre becomes −θ.
-fn mirror_z(piece: AxialPiece) -> AxialPiece {
-    let flip = |p: DVec2| DVec2::new(p.x, -p.y);
-    match piece {
-        AxialPiece::Line { from, to } => AxialPiece::Line {
-            from: flip(to),
-            to: flip(from),
-        },
-        AxialPiece::Arc {
-            centre,
-            radius,
-            start,
-            end,
-        } => AxialPiece::Arc {
-            centre: flip(centre),
-            radius,
-            start: -end,
-            end: -start,
-        },
     }
 }
 

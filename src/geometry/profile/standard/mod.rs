@@ -827,6 +827,30 @@ fn root_width(pitch: f64, h: f64, depth: f64, half_angle_deg: f64) -> f64 {
     0.5 * pitch - (2.0 * depth - h) * half_angle_deg.to_radians().tan()
 }
 
+/// A piece reflected in z about z = 0 and traversed the other way, so that a section
+/// reflected piece by piece, in reverse order, still runs towards +z: a point's angle θ
+/// about an arc's centre becomes −θ.
+pub(super) fn mirror_z(piece: AxialPiece) -> AxialPiece {
+    let flip = |p: DVec2| DVec2::new(p.x, -p.y);
+    match piece {
+        AxialPiece::Line { from, to } => AxialPiece::Line {
+            from: flip(to),
+            to: flip(from),
+        },
+        AxialPiece::Arc {
+            centre,
+            radius,
+            start,
+            end,
+        } => AxialPiece::Arc {
+            centre: flip(centre),
+            radius,
+            start: -end,
+            end: -start,
+        },
+    }
+}
+
 /// A piece reflected in ρ about the cylinder ρ = `about`, keeping its direction of travel in
 /// z: a point's angle θ about an arc's centre becomes π − θ.
 fn mirror_rho(piece: AxialPiece, about: f64) -> AxialPiece {

@@ -29,7 +29,7 @@
 
 use super::arc_fit::{self, Curve};
 use super::designation::{Designation, DesignationError};
-use super::{non_negative, positive, AxialPiece, StandardError};
+use super::{mirror_z, non_negative, positive, AxialPiece, StandardError};
 use glam::DVec2;
 use std::f64::consts::{FRAC_PI_4, PI};
 
@@ -403,7 +403,7 @@ impl Worm {
                 from: bottom,
                 to: DVec2::new(bottom.x, -bottom.y),
             });
-            pieces.push(mirror(&fillet));
+            pieces.push(mirror_z(fillet));
         } else {
             pieces.push(AxialPiece::Line {
                 from: DVec2::new(rf, c.y),
@@ -411,34 +411,12 @@ impl Worm {
             });
         }
         // The right flank mirrors the left (z → −z), traversed from the root to the tip.
-        pieces.extend(left.iter().rev().map(mirror));
+        pieces.extend(left.iter().rev().copied().map(mirror_z));
         pieces.push(AxialPiece::Line {
             from: DVec2::new(tip.x, -tip.y),
             to: DVec2::new(ra, 0.5 * pitch),
         });
         Ok(pieces)
-    }
-}
-
-/// A piece mirrored about z = 0 and traversed the other way.
-fn mirror(piece: &AxialPiece) -> AxialPiece {
-    let flip = |p: DVec2| DVec2::new(p.x, -p.y);
-    match *piece {
-        AxialPiece::Line { from, to } => AxialPiece::Line {
-            from: flip(to),
-            to: flip(from),
-        },
-        AxialPiece::Arc {
-            centre,
-            radius,
-            start,
-            end,
-        } => AxialPiece::Arc {
-            centre: flip(centre),
-            radius,
-            start: -end,
-            end: -start,
-        },
     }
 }
 
