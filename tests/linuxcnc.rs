@@ -379,22 +379,24 @@ fn streams_to_linuxcnc_hold_resume_abort_errors_and_stops() {
 }
 
 #[test]
-fn a_second_linuxcnc_is_refused_while_the_lock_file_exists() {
-    // LinuxCNC's start script refuses a second instance by /tmp/linuxcnc.lock (one per
-    // host); whirl refuses before starting one, naming the file.
+fn a_stale_lock_is_removed_and_a_second_linuxcnc_is_refused_while_one_runs() {
+    // LinuxCNC's start script takes /tmp/linuxcnc.lock for a running instance (one per
+    // host) and, with no terminal to ask on, kills that instance. A lock with none of
+    // LinuxCNC's processes running was left by one killed before its clean-up: whirl removes
+    // it and starts. While that instance runs, a second start is refused, naming a process.
     let _turn = turn();
     let lock = Path::new("/tmp/linuxcnc.lock");
-    assert!(
-        !lock.exists(),
-        "a LinuxCNC outside these tests holds {lock:?}"
-    );
     std::fs::write(lock, b"").unwrap();
     let runtime = tokio::runtime::Runtime::new().unwrap();
-    let started = runtime.block_on(Simulation::start(&profile(), 50.0));
-    std::fs::remove_file(lock).unwrap();
-    let error = started.err().expect("started beside a lock").to_string();
+    let first = runtime
+        .block_on(Simulation::start(&profile(), 50.0))
+        .expect("a stale lock refused the start");
+    let second = runtime.block_on(Simulation::start(&profile(), 50.0));
+    runtime.block_on(first.shut_down());
+    let error = second.err().expect("a second LinuxCNC started").to_string();
     assert!(
-        error.contains("/tmp/linuxcnc.lock") && error.contains("one instance per host"),
+        error.contains("one instance per host") && error.contains(", pid "),
         "{error}"
     );
+    assert!(!lock.exists(), "the instance's clean-up left its lock");
 }

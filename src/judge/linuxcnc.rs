@@ -15,8 +15,11 @@
 //! Running it here, as found:
 //!
 //! - LinuxCNC allows one instance per host (its lock file, shared memory, its port), and
-//!   its start script, finding another, *kills* it when there is no terminal to ask on: so
-//!   the dry run refuses to start while `/tmp/linuxcnc.lock` exists.
+//!   its start script, finding `/tmp/linuxcnc.lock`, *kills* the other instance when there
+//!   is no terminal to ask on: so the dry run refuses to start while one of LinuxCNC's
+//!   processes runs ([`running_instance`]). A lock with none running was left by an
+//!   instance killed before its clean-up (a power cut, a `kill -9`): the dry run removes it
+//!   and says so, as the start script's own clean-up would have.
 //! - As root, `rtapi_app` refuses to run without `RTAPI_UID` (a user to drop to; not 0) and
 //!   needs `RTAPI_FIFO_PATH`, the path of its master socket, in a folder that user can
 //!   write: the dry run gives it `nobody`'s uid and a socket in its own folder.
@@ -96,11 +99,15 @@ pub enum LinuxcncSimError {
     Missing,
     /// Another LinuxCNC runs on this host.
     #[error(
-        "another LinuxCNC runs on this host ({LOCK_FILE} exists): LinuxCNC allows one \
-         instance per host, and starting a second would stop the first; if none runs, the \
-         file was left by a LinuxCNC killed before its clean-up: remove it"
+        "another LinuxCNC runs on this host ({process}, pid {pid}): LinuxCNC allows one \
+         instance per host, and starting a second would stop the first; stop it first"
     )]
-    Busy,
+    Busy {
+        /// The running process's name.
+        process: String,
+        /// Its process id.
+        pid: u32,
+    },
     /// A speed-up that cannot be had.
     #[error("{0}")]
     SpeedUp(String),
@@ -236,6 +243,29 @@ fn on_path(program: &str) -> bool {
         .is_some_and(|paths| std::env::split_paths(&paths).any(|dir| dir.join(program).is_file()))
 }
 
+/// The processes of a running LinuxCNC: its start script, the task, the server and the
+/// realtime application (the names its script's clean-up looks for with `pidof`).
+const INSTANCE_PROCESSES: [&str; 4] = ["linuxcnc", "milltask", "linuxcncsvr", "rtapi_app"];
+
+/// A process of a LinuxCNC running on this host, as (pid, name), found in `/proc`. A
+/// zombie (exited, not yet reaped by its parent: an instance's processes linger so after a
+/// shut-down where no init reaps them promptly) runs nothing and holds nothing.
+pub fn running_instance() -> Option<(u32, String)> {
+    std::fs::read_dir("/proc")
+        .ok()?
+        .flatten()
+        .find_map(|entry| {
+            let pid = entry.file_name().to_str()?.parse().ok()?;
+            // `pid (name) state …`; the name may hold spaces and parentheses, the state follows
+            // the last `)`.
+            let stat = std::fs::read_to_string(entry.path().join("stat")).ok()?;
+            let (head, tail) = stat.rsplit_once(')')?;
+            let name = head.split_once('(')?.1;
+            let zombie = tail.trim_start().starts_with('Z');
+            (INSTANCE_PROCESSES.contains(&name) && !zombie).then(|| (pid, name.to_owned()))
+        })
+}
+
 /// A free TCP port on the loopback interface.
 fn free_port() -> std::io::Result<u16> {
     let listener = std::net::TcpListener::bind("127.0.0.1:0")?;
@@ -261,8 +291,15 @@ impl Simulation {
         if !on_path("linuxcnc") {
             return Err(LinuxcncSimError::Missing);
         }
+        if let Some((pid, process)) = running_instance() {
+            return Err(LinuxcncSimError::Busy { process, pid });
+        }
         if Path::new(LOCK_FILE).exists() {
-            return Err(LinuxcncSimError::Busy);
+            tracing::warn!(
+                "{LOCK_FILE} was left by a LinuxCNC that no longer runs (killed before its \
+                 clean-up): removed"
+            );
+            let _ = std::fs::remove_file(LOCK_FILE);
         }
         let root = is_root();
         let faketime = if speed == 1.0 {
