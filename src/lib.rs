@@ -38,6 +38,7 @@
 //! - [`transport`]: the async edges that move a protocol's bytes.
 //! - [`judge`]: the swept-volume measurement, the simulator and dry runs.
 //! - [`records`]: every run recorded in a database (SQLite or PostgreSQL).
+//! - [`telemetry`]: the machine's live state published on the shop's MQTT broker.
 //! - [`console`]: `whirl serve`, the operator's web console.
 //! - [`papers`]: the founding papers' geometry reproduced, outside the data flow: it checks
 //!   the measurement engine's methods and backs `whirl sweep`.
@@ -81,4 +82,5 @@ pub mod post;
 pub mod program;
 pub mod protocol;
 pub mod records;
+pub mod telemetry;
 pub mod transport;

@@ -180,6 +180,25 @@ pub enum LogError {
 #[derive(Debug, Clone)]
 pub struct ExecLog {
     sink: Sink,
+    tap: Option<Tap>,
+}
+
+/// Who else sees each event as it is written (live telemetry): called on the writing
+/// task with every event, so it must only hand the event on, never wait.
+#[derive(Clone)]
+pub struct Tap(Arc<dyn Fn(&Record) + Send + Sync>);
+
+impl Tap {
+    /// A tap calling `see` with every event.
+    pub fn new(see: impl Fn(&Record) + Send + Sync + 'static) -> Tap {
+        Tap(Arc::new(see))
+    }
+}
+
+impl std::fmt::Debug for Tap {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Tap")
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -225,6 +244,7 @@ impl ExecLog {
                 file: Arc::new(Mutex::new(file)),
                 path: path.to_owned(),
             },
+            tap: None,
         })
     }
 
@@ -232,6 +252,7 @@ impl ExecLog {
     pub fn memory() -> ExecLog {
         ExecLog {
             sink: Sink::Memory(Arc::default()),
+            tap: None,
         }
     }
 
@@ -239,7 +260,15 @@ impl ExecLog {
     pub fn discard() -> ExecLog {
         ExecLog {
             sink: Sink::Discard,
+            tap: None,
         }
+    }
+
+    /// This log, with `tap` shown every event written from now on (by it and its clones
+    /// made after).
+    pub fn tapped(mut self, tap: Tap) -> ExecLog {
+        self.tap = Some(tap);
+        self
     }
 
     /// The events a memory log holds so far, in order (none for a file or a discarding
@@ -258,12 +287,16 @@ impl ExecLog {
         }
     }
 
-    /// Append one event: to a file, one line written in one call and flushed to the OS.
+    /// Append one event: shown to the tap, if any, then to a file, one line written in one
+    /// call and flushed to the OS.
     pub fn write(&mut self, t: f64, event: Event) -> Result<(), LogError> {
+        let record = Record { t, event };
+        if let Some(tap) = &self.tap {
+            (tap.0)(&record);
+        }
         match &self.sink {
             Sink::File { file, path } => {
-                let mut line = serde_json::to_string(&Record { t, event })
-                    .expect("log events always serialise");
+                let mut line = serde_json::to_string(&record).expect("log events always serialise");
                 line.push('\n');
                 let mut file = lock(file);
                 file.write_all(line.as_bytes())
@@ -274,7 +307,7 @@ impl ExecLog {
                     })
             }
             Sink::Memory(records) => {
-                lock(records).push(Record { t, event });
+                lock(records).push(record);
                 Ok(())
             }
             Sink::Discard => Ok(()),

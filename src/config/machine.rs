@@ -19,6 +19,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::config::connection::Connection;
+use crate::config::telemetry::TelemetrySettings;
 use std::fmt;
 
 mod block_rate;
@@ -229,6 +230,10 @@ pub struct MachineProfile {
     /// absent: the caller says (the command line's flags).
     #[serde(default)]
     pub connection: Option<Connection>,
+    /// Where the bridge publishes the machine's live state (`[telemetry]`, see
+    /// [`crate::config::telemetry`]); absent: nowhere, unless the command line says.
+    #[serde(default)]
+    pub telemetry: Option<TelemetrySettings>,
 }
 
 /// Why a profile could not be loaded.
@@ -405,6 +410,11 @@ impl MachineProfile {
         if let Some(connection) = &self.connection {
             connection.validate().map_err(|e| (e.key, e.problem))?;
             self.check_connection(connection)?;
+        }
+        if let Some(telemetry) = &self.telemetry {
+            telemetry
+                .validate()
+                .map_err(|e| (format!("telemetry.{}", e.key), e.problem))?;
         }
         block_rate::check(self)?;
         Ok(())

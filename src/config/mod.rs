@@ -7,6 +7,7 @@
 //! - [`connection`]: a profile's `[connection]`: how the bridge reaches the machine.
 //! - [`eds`]: a CANopen drive's electronic data sheet (CiA 306), which a CAN connection's
 //!   drives are checked against.
+//! - [`telemetry`]: a profile's `[telemetry]`: the MQTT broker a bridge reports to.
 //! - [`provenance`]: what a program was planned from (the files' hashes, Δ, the angle and
 //!   the feed), as its header says it.
 
@@ -15,5 +16,6 @@ pub mod eds;
 pub mod job;
 pub mod machine;
 pub mod provenance;
+pub mod telemetry;
 #[cfg(test)]
 pub(crate) mod testing;

@@ -24,6 +24,7 @@ use crate::plan::overrides::FeedCap;
 use crate::records::{
     Ending, FileSnapshot, NoteKind, Outcome, ProgramId, RunId, RunProvenance, Store, Timestamp,
 };
+use crate::telemetry::{self, RunContext};
 use crate::transport::control::override_range;
 use crate::transport::{
     self, Commands, Link, Posted, Progress, ProgressFn, RunOptions, TransportKind,
@@ -56,6 +57,9 @@ pub struct Console {
     pub records: Option<Records>,
     /// The machine profiles' files as read, by machine name, for the records.
     pub machine_files: BTreeMap<String, FileSnapshot>,
+    /// Where each machine's live state is published (`[telemetry]`, `--mqtt`), by machine
+    /// name; a machine without one publishes nothing.
+    pub telemetry: BTreeMap<String, telemetry::Handle>,
     /// Where the machine locks are.
     lock_dir: PathBuf,
     /// This process, as a lock names it.
@@ -204,6 +208,7 @@ impl Console {
             registry: Registry::default(),
             records: None,
             machine_files: BTreeMap::new(),
+            telemetry: BTreeMap::new(),
             lock_dir: lock::lock_dir(),
             holder: lock::this_process(),
         }
@@ -548,7 +553,26 @@ impl Console {
             start,
         } = run;
         let profile = &self.machines[machine];
-        let log = ExecLog::memory();
+        let telemetry = self.telemetry.get(machine);
+        let log = match telemetry {
+            Some(telemetry) => {
+                telemetry.prepare(RunContext {
+                    kind: "serve".into(),
+                    record: recorded.as_ref().map(|(_, record)| *record),
+                    job: Some(inputs.job_name.clone()),
+                    program_sha256: Some(
+                        ProgramId::of(inputs.posted.name.clone(), &inputs.posted.lines.join("\n"))
+                            .sha256,
+                    ),
+                    provenance: inputs
+                        .provenance
+                        .as_ref()
+                        .and_then(|p| serde_json::to_value(&p.header).ok()),
+                });
+                ExecLog::memory().tapped(telemetry.tap())
+            }
+            None => ExecLog::memory(),
+        };
         let reader = Arc::new(Mutex::new(LogReader {
             console: Arc::clone(self),
             machine: machine.to_owned(),
@@ -560,6 +584,10 @@ impl Console {
             feed_times: Vec::new(),
         }));
         let progress = progress(Arc::clone(&reader), inputs);
+        let progress = match telemetry {
+            Some(telemetry) => telemetry.progress(Some(progress)),
+            None => progress,
+        };
         let mut run_log = log.clone();
         let (mut ending, link_use) = match (&inputs.link, resume_at) {
             (None, None) => match runtime.block_on(dry_run::dry_run(

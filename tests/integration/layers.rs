@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 /// The layers in the order they may import each other: a module may name its own layer
 /// and the ones before it.
-const LAYERS: [&str; 11] = [
+const LAYERS: [&str; 12] = [
     "geometry",
     "config",
     "program",
@@ -21,6 +21,7 @@ const LAYERS: [&str; 11] = [
     "transport",
     "judge",
     "records",
+    "telemetry",
     "console",
 ];
 

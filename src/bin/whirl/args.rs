@@ -110,6 +110,11 @@ pub(crate) enum Command {
         /// program is refused before anything is opened (docs/streaming.md#provenance).
         #[arg(long)]
         no_provenance_check: bool,
+        /// Publish the machine's live state to this MQTT broker, mqtt://HOST[:PORT], in
+        /// place of the machine profile's `[telemetry] mqtt` (docs/shop.md). A broker that
+        /// cannot be reached never slows or stops the run.
+        #[arg(long, value_name = "URL")]
+        mqtt: Option<String>,
     },
     /// Dry-run a job: plan it, start the simulated controller in this process on a
     /// pseudo-terminal, stream the program to it through the same serial code a machine gets,
@@ -157,6 +162,11 @@ pub(crate) enum Command {
         /// --feed-override` (refused above the cusp's cap); on a terminal, + - 0 change it.
         #[arg(long, value_name = "PERCENT")]
         feed_override: Option<u16>,
+        /// Publish the machine's live state to this MQTT broker, mqtt://HOST[:PORT], in
+        /// place of the machine profile's `[telemetry] mqtt` (docs/shop.md). A broker that
+        /// cannot be reached never slows or stops the run.
+        #[arg(long, value_name = "URL")]
+        mqtt: Option<String>,
     },
     /// The record of every plan, dry run and stream: list them, or show one.
     Runs {
@@ -188,6 +198,11 @@ pub(crate) enum Command {
         /// address, localhost, 127.0.0.1 and [::1], and to no other name (DNS rebinding).
         #[arg(long = "allow-host", value_name = "NAME")]
         allow_hosts: Vec<String>,
+        /// Publish the live state of every machine the console runs to this MQTT broker,
+        /// mqtt://HOST[:PORT], in place of each profile's `[telemetry] mqtt`
+        /// (docs/shop.md). A broker that cannot be reached never slows or stops a run.
+        #[arg(long, value_name = "URL")]
+        mqtt: Option<String>,
     },
     /// Read executed-path logs.
     Log {

@@ -15,6 +15,7 @@ mod profile;
 mod provenance;
 mod runs;
 mod serve;
+mod telemetry;
 mod terminal;
 
 use anyhow::{bail, Context, Result};
@@ -26,6 +27,7 @@ use std::process::ExitCode;
 use terminal::say;
 use whirl::config::job::Job;
 use whirl::config::machine::{Dialect, MachineProfile};
+use whirl::config::telemetry::TelemetrySettings;
 use whirl::geometry::linkage::Ring;
 use whirl::judge::dry_run::{self, DryRunOptions};
 use whirl::judge::linuxcnc::LinuxcncDryRunOptions;
@@ -106,6 +108,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             unlock,
             feed_override,
             no_provenance_check,
+            mqtt,
         } => {
             let files = if input.extension().is_some_and(|e| e == "toml") {
                 Files::new().job(&input)
@@ -119,6 +122,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
                 .check()?;
             let machine_path = machine;
             let machine = load_machine(machine_path.as_deref())?;
+            let telemetry = telemetry::settings(&machine, mqtt.as_deref())?;
             let link = Link::resolve(&machine, transport.map(TransportKind::from), port, baud)?;
             // Counted from 1 on the command line (clap refuses 0), from 0 below.
             let resume_at = resume_at.map(|line| line - 1);
@@ -134,7 +138,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
                 (&machine, &file),
                 &link,
                 options,
-                &log,
+                (&log, telemetry.as_ref()),
                 record,
                 (feed_override, no_provenance_check),
             )
@@ -151,6 +155,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             transport,
             controller,
             feed_override,
+            mqtt,
         } => {
             Files::new()
                 .output("--report", report.as_deref())
@@ -174,7 +179,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
                 log,
                 report,
             };
-            dry_run(paths, options, controller, record, feed_override)
+            dry_run(paths, options, controller, record, (feed_override, mqtt))
         }
         Command::Serve {
             machines,
@@ -182,6 +187,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             listen,
             token,
             allow_hosts,
+            mqtt,
         } => serve::run(
             &machines,
             &jobs,
@@ -192,6 +198,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             },
             cli.db.as_deref(),
             cli.allow_unrecorded,
+            mqtt.as_deref(),
         ),
         Command::Runs { command } => runs::runs(command, record),
         Command::Log { command } => {
@@ -375,7 +382,7 @@ fn stream(
     (machine, file): (&MachineProfile, &provenance::MachineFile),
     link: &Link,
     mut options: RunOptions,
-    log: &Path,
+    (log, telemetry): (&Path, Option<&TelemetrySettings>),
     record: &mut runs::Recorder,
     (feed_override, unchecked): (Option<u16>, bool),
 ) -> Result<ExitCode> {
@@ -415,6 +422,15 @@ fn stream(
     let mut log = ExecLog::append(log)?;
     let bar = terminal::progress_bar();
     options.progress = bar.as_ref().map(terminal::Bar::callback);
+    let live = telemetry
+        .map(|settings| {
+            telemetry::Live::start(settings, machine, record.telemetry_context("stream"))
+        })
+        .transpose()?;
+    if let Some(live) = &live {
+        log = live.tap(log);
+        options.progress = live.progress(options.progress.take());
+    }
     let (control, commands) = transport::control();
     let _keys = keys::arm(&control, cap, feed_override);
     let runtime = runtime()?;
@@ -431,6 +447,9 @@ fn stream(
     });
     if let Some(bar) = bar {
         bar.finish();
+    }
+    if let Some(live) = live {
+        live.close();
     }
     record.streamed(&outcome);
     let outcome = match outcome {
@@ -477,12 +496,13 @@ fn dry_run(
     mut options: DryRunOptions,
     controller: Controller,
     record: &mut runs::Recorder,
-    feed_override: Option<u16>,
+    (feed_override, mqtt): (Option<u16>, Option<String>),
 ) -> Result<ExitCode> {
     let machine = match (controller, paths.machine.as_deref()) {
         (Controller::Linuxcnc, None) => MachineProfile::builtin_linuxcnc()?,
         (_, path) => load_machine(path)?,
     };
+    let telemetry = telemetry::settings(&machine, mqtt.as_deref())?;
     if controller == Controller::Linuxcnc && machine.dialect != Dialect::LinuxCnc {
         bail!(
             "--controller linuxcnc runs LinuxCNC's G-code, and machine profile \"{}\" is \
@@ -546,6 +566,16 @@ fn dry_run(
     };
     let bar = terminal::progress_bar();
     options.progress = bar.as_ref().map(terminal::Bar::callback);
+    let live = telemetry
+        .as_ref()
+        .map(|settings| {
+            telemetry::Live::start(settings, &machine, record.telemetry_context("dry-run"))
+        })
+        .transpose()?;
+    if let Some(live) = &live {
+        log = live.tap(log);
+        options.progress = live.progress(options.progress.take());
+    }
     let (control, commands) = transport::control();
     let _keys = keys::arm(&control, cap, feed_override);
     if control.feed_cap().is_some() {
@@ -575,6 +605,9 @@ fn dry_run(
     };
     if let Some(bar) = bar {
         bar.finish();
+    }
+    if let Some(live) = live {
+        live.close();
     }
     let r = r?;
     record.dry_ran(&r);

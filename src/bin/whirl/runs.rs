@@ -500,6 +500,29 @@ impl Recorder {
     /// profile loaded), before anything is sent or written: `posted`, the program it
     /// runs, and `link`, where to, when they are known. If the database cannot take it,
     /// the run is refused unless `--allow-unrecorded` was given (see the module's docs).
+    /// What live telemetry says of the run beyond its log: its record, its job, its
+    /// program's hash and what the program was planned from (after [`Recorder::begin`]).
+    pub(crate) fn telemetry_context(&self, kind: &str) -> whirl::telemetry::RunContext {
+        let run = self.open.as_ref().map(|(_, id, run)| (*id, run));
+        whirl::telemetry::RunContext {
+            kind: kind.to_owned(),
+            record: run.map(|(id, _)| id),
+            job: self
+                .inputs
+                .as_ref()
+                .and_then(|i| i.job.as_ref())
+                .map(|job| job.display().to_string()),
+            program_sha256: run
+                .and_then(|(_, run)| run.program.as_ref())
+                .map(|p| p.sha256.clone()),
+            provenance: self
+                .provenance
+                .as_ref()
+                .and_then(|p| p.header.as_ref())
+                .and_then(|header| serde_json::to_value(header).ok()),
+        }
+    }
+
     pub(crate) fn begin(
         &mut self,
         machine: &MachineProfile,

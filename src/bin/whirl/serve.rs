@@ -22,6 +22,7 @@ use whirl::console::registry::Phase;
 use whirl::console::token::{check_listen, Token};
 use whirl::console::{machines, Console};
 use whirl::records::{FileSnapshot, Place, Process, Store};
+use whirl::telemetry::Telemetry;
 use whirl::transport::Command;
 
 use crate::terminal::say;
@@ -51,6 +52,7 @@ pub(crate) fn run(
     listen: Listen<'_>,
     db: Option<&str>,
     allow_unrecorded: bool,
+    mqtt: Option<&str>,
 ) -> Result<ExitCode> {
     let token = listen.token.map(Token::new).transpose()?;
     check_listen(listen.address, token.as_ref())?;
@@ -70,11 +72,23 @@ pub(crate) fn run(
         loaded
     };
     let machine_files = profiles.iter().map(|p| p.name.clone()).zip(files).collect();
+    let mut telemetry = Vec::new();
+    for profile in &profiles {
+        if let Some(settings) = crate::telemetry::settings(profile, mqtt)? {
+            let started = Telemetry::start(&settings, &profile.name)
+                .context("cannot start the telemetry thread")?;
+            telemetry.push((profile.name.clone(), started));
+        }
+    }
     let machines = machines(profiles).map_err(anyhow::Error::msg)?;
     let jobs = JobDir::open(jobs)
         .with_context(|| format!("the jobs folder (--jobs) {}", jobs.display()))?;
     let mut console = Console::new(machines, jobs);
     console.machine_files = machine_files;
+    console.telemetry = telemetry
+        .iter()
+        .map(|(name, t)| (name.clone(), t.handle().clone()))
+        .collect();
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()?;
@@ -116,6 +130,10 @@ pub(crate) fn run(
             .await
             .context("the console's server")?
             .context("the console's server")?;
+        // Each machine said offline, after its runs have stopped.
+        for (_, telemetry) in telemetry {
+            let _ = tokio::task::spawn_blocking(move || telemetry.close()).await;
+        }
         Ok(ExitCode::SUCCESS)
     })
 }

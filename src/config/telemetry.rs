@@ -1,0 +1,314 @@
+//! Where a bridge publishes its machine's live state: the `[telemetry]` table of a machine
+//! profile (or the command line's `--mqtt`).
+//!
+//! A shop's machines report to one MQTT broker, under one topic prefix, each under its own
+//! name: `whirl/lathe-3/state`. The table says where the broker is, how to log in and how
+//! the bridge keeps its messages while the broker is away; `crate::telemetry` publishes.
+//!
+//! ```
+//! use whirl::config::telemetry::TelemetrySettings;
+//!
+//! let settings: TelemetrySettings = toml::from_str(
+//!     r#"
+//!     mqtt = "mqtt://broker.shop.lan"
+//!     machine = "Lathe 3"
+//!     user = "lathe3"
+//!     password = "secret"
+//!     "#,
+//! )
+//! .unwrap();
+//! settings.validate().unwrap();
+//! let broker = settings.broker().unwrap();
+//! assert_eq!((broker.host.as_str(), broker.port), ("broker.shop.lan", 1883));
+//! assert_eq!(settings.topic_root("ignored"), "whirl/lathe-3");
+//! ```
+
+use serde::{Deserialize, Serialize};
+
+/// MQTT's registered port for unencrypted connections (IANA).
+pub const MQTT_PORT: u16 = 1883;
+
+/// A machine profile's `[telemetry]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TelemetrySettings {
+    /// The broker, `mqtt://HOST[:PORT]` (port 1883 unless given).
+    pub mqtt: String,
+    /// The shop's topic prefix, one or more levels (`whirl`, `plant2/whirling`).
+    #[serde(default = "default_prefix")]
+    pub prefix: String,
+    /// The machine's name in topics; absent: the profile's name. Made topic-safe
+    /// ([`topic_name`]).
+    #[serde(default)]
+    pub machine: Option<String>,
+    /// The broker's user name, if it asks for one.
+    #[serde(default)]
+    pub user: Option<String>,
+    /// Its password (with `user`).
+    #[serde(default)]
+    pub password: Option<String>,
+    /// MQTT keep-alive, s: the broker publishes the bridge's last will (offline) when it
+    /// has heard nothing for one and a half times this.
+    #[serde(default = "default_keepalive")]
+    pub keepalive_s: u64,
+    /// The events kept while the broker is away (oldest dropped past it, and said).
+    #[serde(default = "default_queue")]
+    pub queue: usize,
+    /// The shortest time between two progress messages, s.
+    #[serde(default = "default_progress_interval")]
+    pub progress_interval_s: f64,
+    /// The console's address the shop overview links to (`http://lathe3.shop.lan:8080`);
+    /// absent: none.
+    #[serde(default)]
+    pub console: Option<String>,
+}
+
+fn default_prefix() -> String {
+    "whirl".into()
+}
+fn default_keepalive() -> u64 {
+    10
+}
+fn default_queue() -> usize {
+    1000
+}
+fn default_progress_interval() -> f64 {
+    0.5
+}
+
+/// A broker's address.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Broker {
+    /// Host name or address.
+    pub host: String,
+    /// TCP port.
+    pub port: u16,
+}
+
+/// A `[telemetry]` value that cannot be used: the key and what is wrong.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{key}: {problem}")]
+pub struct TelemetryError {
+    /// The key, as in the profile (`mqtt`, `prefix`).
+    pub key: String,
+    /// What is wrong and what it must be.
+    pub problem: String,
+}
+
+fn invalid(key: &str, problem: impl Into<String>) -> TelemetryError {
+    TelemetryError {
+        key: key.into(),
+        problem: problem.into(),
+    }
+}
+
+impl TelemetrySettings {
+    /// Settings for the broker at `url` and nothing else said (the command line's `--mqtt`).
+    pub fn for_broker(url: &str) -> TelemetrySettings {
+        TelemetrySettings {
+            mqtt: url.into(),
+            prefix: default_prefix(),
+            machine: None,
+            user: None,
+            password: None,
+            keepalive_s: default_keepalive(),
+            queue: default_queue(),
+            progress_interval_s: default_progress_interval(),
+            console: None,
+        }
+    }
+
+    /// These settings with the broker at `url` (`--mqtt` over a profile's `mqtt`).
+    pub fn with_broker(mut self, url: &str) -> TelemetrySettings {
+        url.clone_into(&mut self.mqtt);
+        self
+    }
+
+    /// The broker's host and port from `mqtt`.
+    pub fn broker(&self) -> Result<Broker, TelemetryError> {
+        let url = url::Url::parse(&self.mqtt).map_err(|e| {
+            invalid(
+                "mqtt",
+                format!(
+                    "\"{}\" is not a URL ({e}): give mqtt://HOST[:PORT]",
+                    self.mqtt
+                ),
+            )
+        })?;
+        if url.scheme() != "mqtt" {
+            return Err(invalid(
+                "mqtt",
+                format!(
+                    "\"{}\": the scheme must be mqtt:// (a broker's unencrypted port); \
+                     {}:// is not spoken",
+                    self.mqtt,
+                    url.scheme()
+                ),
+            ));
+        }
+        let extra = !url.username().is_empty()
+            || url.password().is_some()
+            || !matches!(url.path(), "" | "/")
+            || url.query().is_some()
+            || url.fragment().is_some();
+        if extra {
+            return Err(invalid(
+                "mqtt",
+                format!(
+                    "\"{}\" says more than mqtt://HOST[:PORT]: a user and a password go in \
+                     `user` and `password`, the topic prefix in `prefix`",
+                    self.mqtt
+                ),
+            ));
+        }
+        let host = match url.host() {
+            Some(url::Host::Ipv6(address)) => address.to_string(),
+            Some(host) => host.to_string(),
+            None => return Err(invalid("mqtt", format!("\"{}\" names no host", self.mqtt))),
+        };
+        Ok(Broker {
+            host,
+            port: url.port().unwrap_or(MQTT_PORT),
+        })
+    }
+
+    /// Every value checked, naming the key.
+    pub fn validate(&self) -> Result<(), TelemetryError> {
+        self.broker()?;
+        let prefix = &self.prefix;
+        if prefix.is_empty()
+            || prefix.starts_with('/')
+            || prefix.ends_with('/')
+            || prefix.split('/').any(|level| level.is_empty())
+        {
+            return Err(invalid(
+                "prefix",
+                format!(
+                    "\"{prefix}\" must be one or more topic levels without empty ones \
+                     (whirl, plant2/whirling)"
+                ),
+            ));
+        }
+        if let Some(c) = prefix.chars().find(|c| matches!(c, '+' | '#' | '\0')) {
+            return Err(invalid(
+                "prefix",
+                format!("\"{prefix}\" holds '{c}', which MQTT keeps for subscriptions"),
+            ));
+        }
+        if let Some(machine) = &self.machine {
+            if topic_name(machine).is_empty() {
+                return Err(invalid(
+                    "machine",
+                    format!("\"{machine}\" has no letter or digit to name a topic by"),
+                ));
+            }
+        }
+        if self.password.is_some() && self.user.is_none() {
+            return Err(invalid("password", "a password needs a `user`"));
+        }
+        // MQTT's keep-alive is two bytes of seconds; 0 would turn the last will off.
+        if !(1..=u64::from(u16::MAX)).contains(&self.keepalive_s) {
+            return Err(invalid(
+                "keepalive_s",
+                format!("{} must be 1 to 65535 s", self.keepalive_s),
+            ));
+        }
+        if self.queue == 0 {
+            return Err(invalid("queue", "must keep at least one event"));
+        }
+        if !(self.progress_interval_s.is_finite() && self.progress_interval_s > 0.0) {
+            return Err(invalid(
+                "progress_interval_s",
+                format!("{} must be above zero", self.progress_interval_s),
+            ));
+        }
+        Ok(())
+    }
+
+    /// `PREFIX/MACHINE`: the topics' root for a machine whose profile is named
+    /// `profile_name` (unless `machine` names it).
+    pub fn topic_root(&self, profile_name: &str) -> String {
+        let name = self.machine.as_deref().unwrap_or(profile_name);
+        format!("{}/{}", self.prefix, topic_name(name))
+    }
+}
+
+/// A name made one topic level: lower case, every run of characters other than letters,
+/// digits, `-` and `_` one `-`, none at either end (`"Lathe 3 (whirl)"` → `lathe-3-whirl`):
+/// no `/`, `+`, `#` or space, which a subscriber would have to quote or could not match.
+pub fn topic_name(name: &str) -> String {
+    let mut out = String::with_capacity(name.len());
+    for c in name.chars().flat_map(char::to_lowercase) {
+        if c.is_alphanumeric() || c == '_' || c == '-' {
+            out.push(c);
+        } else if !out.is_empty() && !out.ends_with('-') {
+            out.push('-');
+        }
+    }
+    out.trim_end_matches('-').to_owned()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn settings(text: &str) -> TelemetrySettings {
+        toml::from_str(text).unwrap()
+    }
+
+    #[test]
+    fn a_broker_without_a_port_is_on_mqtts_registered_1883() {
+        let s = TelemetrySettings::for_broker("mqtt://10.0.0.5");
+        assert_eq!(
+            s.broker().unwrap(),
+            Broker {
+                host: "10.0.0.5".into(),
+                port: 1883
+            }
+        );
+        let s = TelemetrySettings::for_broker("mqtt://[::1]:18830");
+        assert_eq!(s.broker().unwrap().host, "::1");
+        assert_eq!(s.broker().unwrap().port, 18830);
+    }
+
+    #[test]
+    fn names_become_one_topic_level() {
+        assert_eq!(topic_name("Lathe 3 (whirl)"), "lathe-3-whirl");
+        assert_eq!(topic_name("a/b+c#d"), "a-b-c-d");
+        assert_eq!(topic_name("  cell_2--x "), "cell_2--x");
+        assert_eq!(topic_name("///"), "");
+        let s = settings("mqtt = \"mqtt://b\"\nprefix = \"plant2/whirling\"");
+        assert_eq!(
+            s.topic_root("whirl-sim (grblHAL)"),
+            "plant2/whirling/whirl-sim-grblhal"
+        );
+    }
+
+    #[test]
+    fn bad_values_are_refused_naming_the_key() {
+        let cases = [
+            ("mqtt = \"broker:1883\"", "mqtt"),
+            ("mqtt = \"http://broker\"", "mqtt"),
+            ("mqtt = \"mqtt://u:p@broker\"", "mqtt"),
+            ("mqtt = \"mqtt://broker/whirl\"", "mqtt"),
+            ("mqtt = \"mqtt://b\"\nprefix = \"whirl/\"", "prefix"),
+            ("mqtt = \"mqtt://b\"\nprefix = \"a//b\"", "prefix"),
+            ("mqtt = \"mqtt://b\"\nprefix = \"shop/#\"", "prefix"),
+            ("mqtt = \"mqtt://b\"\nmachine = \"***\"", "machine"),
+            ("mqtt = \"mqtt://b\"\npassword = \"p\"", "password"),
+            ("mqtt = \"mqtt://b\"\nkeepalive_s = 0", "keepalive_s"),
+            ("mqtt = \"mqtt://b\"\nkeepalive_s = 70000", "keepalive_s"),
+            ("mqtt = \"mqtt://b\"\nqueue = 0", "queue"),
+            (
+                "mqtt = \"mqtt://b\"\nprogress_interval_s = 0.0",
+                "progress_interval_s",
+            ),
+        ];
+        for (text, key) in cases {
+            let error = settings(text).validate().expect_err(text);
+            assert_eq!(error.key, key, "{text}: {error}");
+        }
+        let unknown = toml::from_str::<TelemetrySettings>("mqtt = \"mqtt://b\"\ntopic = \"x\"");
+        assert!(unknown.unwrap_err().to_string().contains("topic"));
+    }
+}

@@ -1,0 +1,466 @@
+//! The MQTT edge: a thread of its own that follows the run ([`Tracker`]), keeps what must
+//! be delivered ([`Outbox`]) and talks to the broker (rumqttc), so that nothing the broker
+//! does (down, slow, refusing the login) reaches the run. The run hands its log events and
+//! progress over a bounded channel with `try_send`, which never waits: were the channel
+//! ever full, the message is counted as lost and the run goes on.
+//!
+//! A connection lost is said once (a warning), retried every one to five seconds while
+//! the outbox keeps the events, and said again when it is back. The bridge's birth and its
+//! last will are retained on `status`, so a bridge that dies is shown offline by the broker
+//! once one and a half keep-alives pass without a word from it.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use rumqttc::{AsyncClient, ConnectionError, Event, LastWill, MqttOptions, Outgoing, Packet, QoS};
+use tokio::sync::{mpsc, oneshot};
+use tokio::time::Instant;
+
+use crate::config::telemetry::TelemetrySettings;
+use crate::log::{self, Record, Tap};
+use crate::records::{Process, Timestamp};
+use crate::telemetry::message::{self, Status};
+use crate::telemetry::outbox::{self, Outbox};
+use crate::telemetry::tracker::{self, Out, RunContext, Tracker};
+use crate::transport::{Progress, ProgressFn};
+
+/// QoS 1 messages out before their acknowledgements.
+const WINDOW: usize = 32;
+/// What the run may hand over before the thread takes it (it takes it at once).
+const INPUTS: usize = 4096;
+/// The first wait before a reconnection, and the longest.
+const FIRST_RETRY: Duration = Duration::from_secs(1);
+const LAST_RETRY: Duration = Duration::from_secs(5);
+/// How long a bridge that stops waits for the broker to take what is queued.
+pub const CLOSE_WAIT: Duration = Duration::from_secs(3);
+/// The largest message: a run's start with its provenance is a few kilobytes.
+const MAX_PACKET: usize = 256 * 1024;
+
+/// What the run hands the thread.
+#[derive(Debug)]
+enum Input {
+    Run(RunContext),
+    Record(Record),
+    Progress(Progress),
+}
+
+/// How a bridge's telemetry ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Closed {
+    /// Messages the broker had not acknowledged when the bridge stopped.
+    pub undelivered: usize,
+    /// Messages dropped from a full queue while the broker was away.
+    pub dropped: u64,
+    /// Log events or progress the thread could not take (its channel full).
+    pub lost: u64,
+}
+
+/// Who publishes: the machine's name and topics, and this bridge.
+#[derive(Debug, Clone)]
+struct Identity {
+    root: String,
+    status: Status,
+}
+
+/// A bridge's telemetry, publishing from a thread of its own until [`Telemetry::close`].
+pub struct Telemetry {
+    handle: Handle,
+    close: oneshot::Sender<()>,
+    thread: std::thread::JoinHandle<Closed>,
+}
+
+/// What a run hands its telemetry through: clonable, never waiting.
+#[derive(Debug, Clone)]
+pub struct Handle {
+    inputs: mpsc::Sender<Input>,
+    lost: Arc<AtomicU64>,
+    root: String,
+}
+
+impl Telemetry {
+    /// Starts publishing the machine named `machine` (its profile's name) with `settings`,
+    /// which must be valid ([`TelemetrySettings::validate`]: a profile's loading checks
+    /// them). The machine is announced online and idle as soon as the broker answers.
+    pub fn start(settings: &TelemetrySettings, machine: &str) -> std::io::Result<Telemetry> {
+        let session = session_word();
+        let identity = Identity {
+            root: settings.topic_root(machine),
+            status: Status {
+                online: true,
+                machine: machine.to_owned(),
+                bridge: Process::current().host,
+                pid: std::process::id(),
+                session,
+                version: env!("CARGO_PKG_VERSION").to_owned(),
+                since: Timestamp::now().to_text(),
+                keepalive_s: settings.keepalive_s,
+                console: settings.console.clone(),
+                reason: None,
+            },
+        };
+        let (inputs, receiver) = mpsc::channel(INPUTS);
+        let (close, closing) = oneshot::channel();
+        let handle = Handle {
+            inputs,
+            lost: Arc::new(AtomicU64::new(0)),
+            root: identity.root.clone(),
+        };
+        let settings = settings.clone();
+        let lost = handle.lost.clone();
+        let thread = std::thread::Builder::new()
+            .name("whirl-telemetry".into())
+            .spawn(move || {
+                let runtime = tokio::runtime::Builder::new_current_thread()
+                    .enable_all()
+                    .build()
+                    .expect("a runtime of one thread builds");
+                let mut closed = runtime.block_on(publish(&settings, identity, receiver, closing));
+                closed.lost = lost.load(Ordering::Relaxed);
+                closed
+            })?;
+        Ok(Telemetry {
+            handle,
+            close,
+            thread,
+        })
+    }
+
+    /// What runs hand their log events and progress through.
+    pub fn handle(&self) -> &Handle {
+        &self.handle
+    }
+
+    /// Says goodbye (the bridge offline, retained), waits up to [`CLOSE_WAIT`] for the
+    /// broker to take what is queued, and ends the thread. It blocks: from async code, call
+    /// it on a blocking thread.
+    pub fn close(self) -> Closed {
+        let _ = self.close.send(());
+        let lost = self.handle.lost.clone();
+        drop(self.handle);
+        self.thread.join().unwrap_or(Closed {
+            undelivered: 0,
+            dropped: 0,
+            lost: lost.load(Ordering::Relaxed),
+        })
+    }
+}
+
+impl Handle {
+    /// `PREFIX/MACHINE`, the root of the bridge's topics.
+    pub fn root(&self) -> &str {
+        &self.root
+    }
+
+    /// What the next run's log will not say: its kind, record, job and provenance.
+    pub fn prepare(&self, context: RunContext) {
+        self.hand(Input::Run(context));
+    }
+
+    /// A tap for the run's log (`crate::log::ExecLog::tapped`): the events the tracker
+    /// reads go to the thread; the rest (every line sent and acknowledged, every move
+    /// executed) never leaves the run.
+    pub fn tap(&self) -> Tap {
+        let handle = self.clone();
+        Tap::new(move |record: &Record| {
+            if matters(&record.event) {
+                handle.hand(Input::Record(record.clone()));
+            }
+        })
+    }
+
+    /// A progress callback that hands each snapshot to the thread, then calls `then` (the
+    /// terminal's bar, the console's page).
+    pub fn progress(&self, mut then: Option<ProgressFn>) -> ProgressFn {
+        let handle = self.clone();
+        Box::new(move |p: &Progress| {
+            handle.hand(Input::Progress(p.clone()));
+            if let Some(then) = then.as_mut() {
+                then(p);
+            }
+        })
+    }
+
+    /// Hands `input` over without waiting; counted as lost if the channel is full.
+    fn hand(&self, input: Input) {
+        if self.inputs.try_send(input).is_err() {
+            self.lost.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+/// Whether the tracker reads this event.
+fn matters(event: &log::Event) -> bool {
+    !matches!(
+        event,
+        log::Event::Sent { .. }
+            | log::Event::Ack { .. }
+            | log::Event::Executed { .. }
+            | log::Event::Message { .. }
+    )
+}
+
+/// A random word naming this start of the bridge (and its MQTT client id).
+fn session_word() -> String {
+    let mut bytes = [0u8; 8];
+    if getrandom::fill(&mut bytes).is_err() {
+        // No randomness from the OS: the time and the pid still differ between starts.
+        let now = Timestamp::now().0 as u64;
+        bytes = (now ^ u64::from(std::process::id()) << 40).to_le_bytes();
+    }
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// A live connection: the client that publishes and the events its loop reports.
+struct Connection {
+    client: AsyncClient,
+    events: mpsc::UnboundedReceiver<Result<Event, ConnectionError>>,
+    poller: tokio::task::JoinHandle<()>,
+}
+
+impl Connection {
+    /// Opens a connection (its loop polled on a task of its own, whose events come over a
+    /// channel: a loop's poll must not be dropped halfway, a channel's receive may).
+    fn open(options: MqttOptions) -> Connection {
+        let (client, mut eventloop) = AsyncClient::new(options, WINDOW + 8);
+        let (sender, events) = mpsc::unbounded_channel();
+        let poller = tokio::spawn(async move {
+            loop {
+                let event = eventloop.poll().await;
+                let failed = event.is_err();
+                if sender.send(event).is_err() || failed {
+                    return;
+                }
+            }
+        });
+        Connection {
+            client,
+            events,
+            poller,
+        }
+    }
+
+    /// Publishes what the outbox hands out now. The client's channel holds the whole
+    /// window and the progress, so a refusal means the loop has ended: its error comes.
+    fn publish(&self, root: &str, outbox: &mut Outbox) {
+        while let Some(m) = outbox.to_send() {
+            let qos = if m.acknowledged {
+                QoS::AtLeastOnce
+            } else {
+                QoS::AtMostOnce
+            };
+            let topic = format!("{root}/{}", m.topic);
+            if self
+                .client
+                .try_publish(topic, qos, m.retain, m.payload)
+                .is_err()
+            {
+                return;
+            }
+        }
+    }
+}
+
+impl Drop for Connection {
+    fn drop(&mut self) {
+        self.poller.abort();
+    }
+}
+
+/// The next event of the connection, if there is one (else never).
+async fn next_event(connection: &mut Option<Connection>) -> Option<Result<Event, ConnectionError>> {
+    match connection {
+        Some(c) => c.events.recv().await,
+        None => std::future::pending().await,
+    }
+}
+
+/// Sleeps until `at`, or forever if there is no such time.
+async fn until(at: Option<Instant>) {
+    match at {
+        Some(at) => tokio::time::sleep_until(at).await,
+        None => std::future::pending().await,
+    }
+}
+
+/// The thread's work: follow the run, keep the outbox, hold a connection to the broker.
+async fn publish(
+    settings: &TelemetrySettings,
+    identity: Identity,
+    mut inputs: mpsc::Receiver<Input>,
+    mut closing: oneshot::Receiver<()>,
+) -> Closed {
+    let broker = settings.broker().expect("telemetry settings are validated");
+    let payload = |status: &Status| serde_json::to_vec(status).expect("a status serialises");
+    let status = |status: &Status| outbox::Outgoing {
+        topic: message::STATUS,
+        payload: payload(status),
+        acknowledged: true,
+        retain: true,
+    };
+    let will = Status {
+        online: false,
+        reason: Some("connection lost (the broker's last will for the bridge)".into()),
+        ..identity.status.clone()
+    };
+    let mut options = MqttOptions::new(
+        format!("whirl-{}", identity.status.session),
+        broker.host.clone(),
+        broker.port,
+    );
+    options
+        .set_keep_alive(Duration::from_secs(settings.keepalive_s))
+        .set_clean_session(true)
+        .set_inflight(WINDOW as u16)
+        .set_max_packet_size(MAX_PACKET, MAX_PACKET)
+        .set_last_will(LastWill::new(
+            format!("{}/{}", identity.root, message::STATUS),
+            payload(&will),
+            QoS::AtLeastOnce,
+            true,
+        ));
+    if let Some(user) = &settings.user {
+        options.set_credentials(user, settings.password.clone().unwrap_or_default());
+    }
+    let started = Instant::now();
+    let mut tracker = Tracker::new(&identity.status.session, settings.progress_interval_s);
+    let mut outbox = Outbox::new(status(&identity.status), settings.queue, WINDOW);
+    let mut said = Said::default();
+    let first = tracker.state(&Timestamp::now().to_text());
+    take(vec![Out::State(first)], &mut outbox, &mut said);
+    let mut connection: Option<Connection> = None;
+    let mut retry_at: Option<Instant> = None;
+    let mut retry = FIRST_RETRY;
+    let mut deadline: Option<Instant> = None;
+    let mut inputs_open = true;
+    let mut disconnecting = false;
+    let url = &settings.mqtt;
+    loop {
+        if connection.is_none() && retry_at.is_none_or(|at| at <= Instant::now()) {
+            connection = Some(Connection::open(options.clone()));
+            retry_at = None;
+        }
+        if let Some(c) = &connection {
+            c.publish(&identity.root, &mut outbox);
+            if deadline.is_some() && outbox.waiting() == 0 && !disconnecting {
+                // Said before the socket closes, so the broker drops the last will.
+                disconnecting = c.client.try_disconnect().is_ok();
+            }
+        }
+        tokio::select! {
+            input = inputs.recv(), if inputs_open => match input {
+                Some(input) => {
+                    let ms = started.elapsed().as_millis() as i64;
+                    let time = Timestamp::now().to_text();
+                    let out = match input {
+                        Input::Run(context) => {
+                            tracker.prepare(context);
+                            Vec::new()
+                        }
+                        Input::Record(record) => tracker.record(&record, &time),
+                        Input::Progress(p) => tracker.progress(&p, ms, &time),
+                    };
+                    take(out, &mut outbox, &mut said);
+                }
+                None => inputs_open = false,
+            },
+            _ = &mut closing, if deadline.is_none() => {
+                deadline = Some(Instant::now() + CLOSE_WAIT);
+                let goodbye = Status {
+                    online: false,
+                    reason: Some("the bridge stopped".into()),
+                    ..identity.status.clone()
+                };
+                queue(status(&goodbye), &mut outbox, &mut said);
+            }
+            event = next_event(&mut connection) => match event {
+                Some(Ok(Event::Incoming(Packet::ConnAck(_)))) => {
+                    outbox.connected();
+                    retry = FIRST_RETRY;
+                    if said.away {
+                        tracing::info!(
+                            "telemetry: the broker at {url} answers again; {} queued \
+                             messages go now",
+                            outbox.waiting()
+                        );
+                        said.away = false;
+                    }
+                }
+                Some(Ok(Event::Incoming(Packet::PubAck(_)))) => outbox.acked(),
+                Some(Ok(Event::Outgoing(Outgoing::Disconnect))) => break,
+                Some(Ok(_)) => {}
+                Some(Err(error)) => {
+                    outbox.disconnected();
+                    connection = None;
+                    disconnecting = false;
+                    retry_at = Some(Instant::now() + retry);
+                    retry = (retry * 2).min(LAST_RETRY);
+                    if !said.away {
+                        tracing::warn!(
+                            "telemetry: the broker at {url} cannot be reached ({error}); the \
+                             run goes on, up to {} events wait for it",
+                            settings.queue
+                        );
+                        said.away = true;
+                    }
+                }
+                None => {
+                    outbox.disconnected();
+                    connection = None;
+                    disconnecting = false;
+                    retry_at = Some(Instant::now() + retry);
+                }
+            },
+            _ = until(retry_at), if connection.is_none() => {}
+            _ = until(deadline) => break,
+        }
+    }
+    Closed {
+        // The goodbye is the last of them; a bridge that could not say it is shown
+        // offline by its will.
+        undelivered: outbox.waiting(),
+        dropped: outbox.dropped(),
+        lost: 0,
+    }
+}
+
+/// What the thread has said of the broker, so that it says each once.
+#[derive(Debug, Default)]
+struct Said {
+    away: bool,
+    full: bool,
+}
+
+/// The tracker's messages into the outbox.
+fn take(out: Vec<Out>, outbox: &mut Outbox, said: &mut Said) {
+    for message in out {
+        let topic = tracker::topic(&message);
+        let (payload, retain) = match &message {
+            Out::State(state) => (serde_json::to_vec(state), true),
+            Out::Event(event) => (serde_json::to_vec(event), false),
+            Out::Progress(progress) => (serde_json::to_vec(progress), false),
+        };
+        let outgoing = outbox::Outgoing {
+            topic,
+            payload: payload.expect("telemetry messages serialise"),
+            acknowledged: !matches!(message, Out::Progress(_)),
+            retain,
+        };
+        if outgoing.acknowledged {
+            queue(outgoing, outbox, said);
+        } else {
+            outbox.progress(outgoing);
+        }
+    }
+}
+
+/// One QoS 1 message into the outbox, saying once that the queue overflows.
+fn queue(outgoing: outbox::Outgoing, outbox: &mut Outbox, said: &mut Said) {
+    if outbox.push(outgoing) && !said.full {
+        tracing::warn!(
+            "telemetry: the broker has been away so long that its queue is full: the oldest \
+             events are dropped (the readers see the gap in `seq`)"
+        );
+        said.full = true;
+    }
+}
