@@ -292,3 +292,248 @@ pub fn topic(out: &Out) -> &'static str {
         Out::Progress(_) => message::PROGRESS,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::transport::progress::Unit;
+    use std::time::Duration;
+
+    fn record(event: log::Event) -> Record {
+        Record { t: 0.0, event }
+    }
+
+    fn start() -> log::Event {
+        log::Event::Start {
+            program: "job.toml".into(),
+            lines: 100,
+            transport: "serial".into(),
+        }
+    }
+
+    fn status(word: &str) -> log::Event {
+        log::Event::Status {
+            state: word.into(),
+            pos: [0.0; 3],
+            blocks_free: None,
+            rx_free: None,
+            line: Some(12),
+        }
+    }
+
+    fn end(completed: bool) -> log::Event {
+        log::Event::End {
+            completed,
+            reason: (!completed).then(|| "held, then stopped".to_owned()),
+        }
+    }
+
+    /// What each message says: an event's kind, or the state's machine.
+    fn said(out: &[Out]) -> Vec<String> {
+        out.iter()
+            .map(|o| match o {
+                Out::Event(e) => format!("{:?}", e.what)
+                    .split([' ', '{'])
+                    .next()
+                    .unwrap()
+                    .to_owned(),
+                Out::State(s) => format!("state {:?}", s.state),
+                Out::Progress(_) => "progress".to_owned(),
+            })
+            .collect()
+    }
+
+    fn feed(tracker: &mut Tracker, events: Vec<log::Event>) -> Vec<Out> {
+        events
+            .into_iter()
+            .flat_map(|e| tracker.record(&record(e), "t"))
+            .collect()
+    }
+
+    #[test]
+    fn a_run_starts_holds_resumes_and_ends_in_each_controllers_words() {
+        for (held, running) in [
+            ("Hold:0", "Run"),
+            ("Held", "Running"),
+            ("PAUSED", "RUNNING"),
+            ("Door:1", "Run"),
+        ] {
+            let mut tracker = Tracker::new("s", 0.5);
+            let out = feed(
+                &mut tracker,
+                vec![
+                    start(),
+                    status(running),
+                    status(held),
+                    status(held),
+                    status(running),
+                    end(true),
+                ],
+            );
+            assert_eq!(
+                said(&out),
+                [
+                    "Start",
+                    "state Running",
+                    "Hold",
+                    "state Held",
+                    "Resume",
+                    "state Running",
+                    "End",
+                    "state Idle"
+                ],
+                "{held} / {running}"
+            );
+            let Out::State(last) = out.last().unwrap() else {
+                panic!()
+            };
+            assert_eq!(last.last.as_ref().map(|l| l.completed), Some(true));
+        }
+    }
+
+    #[test]
+    fn every_message_is_numbered_once_in_order() {
+        let mut tracker = Tracker::new("s", 0.5);
+        let first = tracker.state("t");
+        let out = feed(
+            &mut tracker,
+            vec![start(), status("Hold:0"), status("Run"), end(true)],
+        );
+        let seqs: Vec<u64> = std::iter::once(first.seq)
+            .chain(out.iter().map(|o| match o {
+                Out::Event(e) => e.seq,
+                Out::State(s) => s.seq,
+                Out::Progress(_) => unreachable!(),
+            }))
+            .collect();
+        assert_eq!(seqs, (1..=seqs.len() as u64).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn an_alarm_is_said_in_words_and_stays_after_the_run() {
+        let mut tracker = Tracker::new("s", 0.5);
+        let alarm = log::Event::Alarm {
+            code: 64,
+            message: "Δ guard: overcut".into(),
+        };
+        let out = feed(&mut tracker, vec![start(), alarm, end(false)]);
+        assert_eq!(
+            said(&out),
+            [
+                "Start",
+                "state Running",
+                "Alarm",
+                "state Alarm",
+                "End",
+                "state Alarm"
+            ]
+        );
+        let Out::State(last) = out.last().unwrap() else {
+            panic!()
+        };
+        assert_eq!(
+            last.alarm.as_ref().map(|a| (a.code, a.text.as_str())),
+            Some((64, "Δ guard: overcut"))
+        );
+        // The next run starts clear of it.
+        let out = feed(&mut tracker, vec![start()]);
+        let Out::State(state) = &out[1] else { panic!() };
+        assert_eq!((state.state, state.alarm.clone()), (Machine::Running, None));
+    }
+
+    #[test]
+    fn where_a_run_resumes_is_said_whether_it_comes_before_or_after_its_end() {
+        let resume = log::Event::ResumeAt {
+            line: 41,
+            possibly_run_to: Some(44),
+        };
+        // A serial line logs it before the End, a fieldbus after.
+        for events in [
+            vec![start(), resume.clone(), end(false)],
+            vec![start(), end(false), resume.clone()],
+        ] {
+            let mut tracker = Tracker::new("s", 0.5);
+            let out = feed(&mut tracker, events);
+            let Out::State(last) = out.last().unwrap() else {
+                panic!()
+            };
+            let ending = last.last.clone().unwrap();
+            assert_eq!(
+                (ending.resume_at, ending.possibly_run_to),
+                (Some(41), Some(44))
+            );
+            assert!(!ending.completed);
+        }
+    }
+
+    #[test]
+    fn an_override_is_said_when_it_changes_only() {
+        let running = |percent| log::Event::FeedOverride {
+            percent,
+            state: FeedOverrideState::Running,
+        };
+        let asked = log::Event::FeedOverride {
+            percent: 50,
+            state: FeedOverrideState::Asked,
+        };
+        let mut tracker = Tracker::new("s", 0.5);
+        let out = feed(
+            &mut tracker,
+            vec![start(), asked, running(80), running(80), running(100)],
+        );
+        let percents: Vec<u16> = out
+            .iter()
+            .filter_map(|o| match o {
+                Out::Event(Event {
+                    what: What::FeedOverride { percent },
+                    ..
+                }) => Some(*percent),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(percents, [80, 100]);
+    }
+
+    #[test]
+    fn progress_comes_at_most_once_an_interval_and_always_at_the_end() {
+        let mut tracker = Tracker::new("s", 0.5);
+        let snapshot = |done| transport::Progress {
+            unit: Unit::Lines,
+            done,
+            total: 100,
+            line: Some(done),
+            elapsed: Duration::from_millis(10 * done as u64),
+            left: None,
+            state: Some("Run".into()),
+            position: Some([1.0, 2.0, 3.0]),
+            finishing: false,
+        };
+        assert!(
+            tracker.progress(&snapshot(1), 0, "t").is_empty(),
+            "before the start"
+        );
+        feed(&mut tracker, vec![start()]);
+        // One snapshot every 100 ms for 2 s: one message each 500 ms, and the last.
+        let sent: Vec<usize> = (0..=20)
+            .flat_map(|i| tracker.progress(&snapshot(i * 5), 100 * i as i64, "t"))
+            .map(|o| match o {
+                Out::Progress(p) => p.done,
+                _ => panic!("a state change from a steady Run"),
+            })
+            .collect();
+        assert_eq!(sent, [0, 25, 50, 75, 100]);
+        let mut tracker = Tracker::new("s", 0.5);
+        feed(&mut tracker, vec![start()]);
+        let out = tracker.progress(&snapshot(99), 0, "t");
+        let Out::Progress(p) = &out[0] else { panic!() };
+        assert_eq!(
+            (p.line, p.percent, p.position.map(|p| p.c)),
+            (Some(100), 99.0, Some(3.0))
+        );
+        assert_eq!(
+            tracker.progress(&snapshot(100), 1, "t").len(),
+            1,
+            "the last comes at once"
+        );
+    }
+}

@@ -122,6 +122,22 @@ fn a_bad_connection_is_refused_naming_its_key() {
     );
 }
 
+#[test]
+fn a_profiles_telemetry_is_read_and_a_bad_one_refused_naming_its_key() {
+    let good =
+        format!("{SIM}\n[telemetry]\nmqtt = \"mqtt://broker:1884\"\nmachine = \"Lathe 3\"\n");
+    let profile = MachineProfile::from_toml(&good, "lathe.toml").unwrap();
+    let telemetry = profile.telemetry.unwrap();
+    assert_eq!(telemetry.broker().unwrap().port, 1884);
+    assert_eq!(telemetry.topic_root(&profile.name), "whirl/lathe-3");
+    let bad = good.replace("mqtt://broker:1884", "tcp://broker:1884");
+    let error = MachineProfile::from_toml(&bad, "lathe.toml").unwrap_err();
+    assert!(
+        matches!(&error, ProfileError::Invalid { key, .. } if key == "telemetry.mqtt"),
+        "{error}"
+    );
+}
+
 const SIM: &str = r#"
 name = "sim"
 dialect = "grblhal"
