@@ -79,6 +79,11 @@ impl Edge {
     pub fn close(&self) {
         self.closing.send_replace(true);
     }
+
+    /// Turns true when [`Edge::close`] is called: an event stream ends on it.
+    pub fn closing(&self) -> tokio::sync::watch::Receiver<bool> {
+        self.closing.subscribe()
+    }
 }
 
 /// Who sent a request, for the console's log and the notes of what they pressed: the
@@ -126,7 +131,7 @@ pub fn router(console: Arc<Console>, edge: Arc<Edge>) -> Router {
 /// record, which holds the job and machine files it ran (a command-line run's job may lie
 /// outside `--jobs`, and a shop's database holds every machine's). Every answer carries
 /// the headers that keep the page out of other sites' frames.
-async fn guard(
+pub(super) async fn guard(
     State(edge): State<Arc<Edge>>,
     mut request: axum::extract::Request,
     next: axum::middleware::Next,

@@ -16,7 +16,8 @@
 //! - [`resume`]: a stopped dry run resumed where it stopped, re-entering along the groove,
 //!   over the transport it ran on;
 //! - [`record`]: the runs in the run records ([`crate::records`]);
-//! - [`history`]: the records searched for the history page.
+//! - [`history`]: the records searched for the history page;
+//! - [`shop`]: the shop overview (`whirl serve --shop`), every machine as the broker says it.
 //!
 //! [`http`] is the edge: axum routes, the page (embedded, no build step, nothing fetched
 //! from the internet) and the server-sent events that push every change to it.
@@ -32,6 +33,7 @@ pub mod record;
 pub mod registry;
 pub mod resume;
 pub mod runner;
+pub mod shop;
 pub mod token;
 
 use crate::config::machine::MachineProfile;

@@ -198,6 +198,14 @@ pub(crate) enum Command {
         /// address, localhost, 127.0.0.1 and [::1], and to no other name (DNS rebinding).
         #[arg(long = "allow-host", value_name = "NAME")]
         allow_hosts: Vec<String>,
+        /// Serve the shop overview instead of a machine's console: every machine whose
+        /// bridge publishes to the --mqtt broker, and the shop's history from the run
+        /// records (docs/shop.md). Read-only: it starts nothing.
+        #[arg(long, requires = "mqtt", conflicts_with = "machines")]
+        shop: bool,
+        /// The topic prefix the shop's bridges publish under (with --shop).
+        #[arg(long, default_value = "whirl", requires = "shop")]
+        prefix: String,
         /// Publish the live state of every machine the console runs to this MQTT broker,
         /// mqtt://HOST[:PORT], in place of each profile's `[telemetry] mqtt`
         /// (docs/shop.md). A broker that cannot be reached never slows or stops a run.

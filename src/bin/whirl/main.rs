@@ -187,19 +187,21 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             listen,
             token,
             allow_hosts,
+            shop,
+            prefix,
             mqtt,
-        } => serve::run(
-            &machines,
-            &jobs,
-            serve::Listen {
+        } => {
+            let listen = serve::Listen {
                 address: listen,
                 token: token.as_deref(),
                 hosts: &allow_hosts,
-            },
-            cli.db.as_deref(),
-            cli.allow_unrecorded,
-            mqtt.as_deref(),
-        ),
+            };
+            let records = (cli.db.as_deref(), cli.allow_unrecorded);
+            match (shop, mqtt.as_deref()) {
+                (true, Some(mqtt)) => serve::shop(&jobs, listen, records, (mqtt, &prefix)),
+                _ => serve::run(&machines, &jobs, listen, records, mqtt.as_deref()),
+            }
+        }
         Command::Runs { command } => runs::runs(command, record),
         Command::Log { command } => {
             match command {

@@ -14,11 +14,13 @@ use std::sync::Arc;
 use std::time::Duration;
 use tokio::signal::unix::{signal, SignalKind};
 use whirl::config::machine::MachineProfile;
+use whirl::config::telemetry::TelemetrySettings;
 use whirl::console::gate::Gate;
 use whirl::console::http::{self, Edge};
 use whirl::console::paths::JobDir;
 use whirl::console::record::Records;
 use whirl::console::registry::Phase;
+use whirl::console::shop::{feed, Shop};
 use whirl::console::token::{check_listen, Token};
 use whirl::console::{machines, Console};
 use whirl::records::{FileSnapshot, Place, Process, Store};
@@ -50,8 +52,7 @@ pub(crate) fn run(
     profiles: &[PathBuf],
     jobs: &std::path::Path,
     listen: Listen<'_>,
-    db: Option<&str>,
-    allow_unrecorded: bool,
+    (db, allow_unrecorded): (Option<&str>, bool),
     mqtt: Option<&str>,
 ) -> Result<ExitCode> {
     let token = listen.token.map(Token::new).transpose()?;
@@ -95,13 +96,7 @@ pub(crate) fn run(
     runtime.block_on(async move {
         console.records = records(db, allow_unrecorded).await?;
         let console = Arc::new(console);
-        let listener = tokio::net::TcpListener::bind(listen.address)
-            .await
-            .with_context(|| format!("cannot listen on {} (--listen)", listen.address))?;
-        let address = listener.local_addr()?;
-        let gate = Gate::with_random_key(address, listen.hosts)
-            .context("no randomness for the console's page key")?;
-        let edge = Arc::new(Edge::new(gate, token, address.port()));
+        let (listener, address, edge) = bind(&listen, token).await?;
         say!("whirl serve: the console is at http://{address}/ (Ctrl-C ends it)")?;
         let mut signals = Signals::install()?;
         let (stopped, serving_ends) = tokio::sync::oneshot::channel::<()>();
@@ -134,6 +129,72 @@ pub(crate) fn run(
         for (_, telemetry) in telemetry {
             let _ = tokio::task::spawn_blocking(move || telemetry.close()).await;
         }
+        Ok(ExitCode::SUCCESS)
+    })
+}
+
+/// Listens on `listen`'s address behind a gate of its own (the hosts it answers to, a
+/// page key of this start's own) and the token; the address it listens on.
+async fn bind(
+    listen: &Listen<'_>,
+    token: Option<Token>,
+) -> Result<(tokio::net::TcpListener, SocketAddr, Arc<Edge>)> {
+    let listener = tokio::net::TcpListener::bind(listen.address)
+        .await
+        .with_context(|| format!("cannot listen on {} (--listen)", listen.address))?;
+    let address = listener.local_addr()?;
+    let gate = Gate::with_random_key(address, listen.hosts)
+        .context("no randomness for the console's page key")?;
+    Ok((
+        listener,
+        address,
+        Arc::new(Edge::new(gate, token, address.port())),
+    ))
+}
+
+/// `whirl serve --shop`: the shop overview of the machines publishing under `prefix` on the
+/// broker at `mqtt`, and the history in the run records, until a signal ends it.
+pub(crate) fn shop(
+    jobs: &std::path::Path,
+    listen: Listen<'_>,
+    (db, allow_unrecorded): (Option<&str>, bool),
+    (mqtt, prefix): (&str, &str),
+) -> Result<ExitCode> {
+    let token = listen.token.map(Token::new).transpose()?;
+    check_listen(listen.address, token.as_ref())?;
+    let broker = TelemetrySettings::for_broker(mqtt)
+        .broker()
+        .map_err(|e| anyhow::anyhow!("--mqtt: {}", e.problem))?;
+    let mut probe = TelemetrySettings::for_broker(mqtt);
+    probe.prefix = prefix.to_owned();
+    probe
+        .validate()
+        .map_err(|e| anyhow::anyhow!("--prefix: {}", e.problem))?;
+    let jobs = JobDir::open(jobs)
+        .with_context(|| format!("the jobs folder (--jobs) {}", jobs.display()))?;
+    let mut console = Console::new(Default::default(), jobs);
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    runtime.block_on(async move {
+        console.records = records(db, allow_unrecorded).await?;
+        let shop = Arc::new(Shop::new(prefix));
+        let following = tokio::spawn(feed::follow(Arc::clone(&shop), broker, None));
+        let (listener, address, edge) = bind(&listen, token).await?;
+        say!("whirl serve --shop: the shop overview is at http://{address}/ (Ctrl-C ends it)")?;
+        let app = whirl::console::shop::page::router(shop, Arc::new(console), Arc::clone(&edge));
+        let mut signals = Signals::install()?;
+        let serving = axum::serve(
+            listener,
+            app.into_make_service_with_connect_info::<SocketAddr>(),
+        )
+        .with_graceful_shutdown(async move {
+            let signal = signals.next().await;
+            eprintln!("whirl serve --shop: {signal}: ending");
+            edge.close();
+        });
+        serving.await.context("the overview's server")?;
+        following.abort();
         Ok(ExitCode::SUCCESS)
     })
 }
