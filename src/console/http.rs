@@ -352,7 +352,7 @@ async fn login(
 /// Whether this page may act (no token needed, or it presented the right one or its
 /// session), and the page key its actions carry: only a page of the console's own origin
 /// can read this answer.
-async fn session(
+pub(super) async fn session(
     Extension(edge): Extension<Arc<Edge>>,
     headers: HeaderMap,
 ) -> Json<serde_json::Value> {

@@ -15,7 +15,7 @@ use axum::{Extension, Json, Router};
 
 use super::view::MachineRow;
 use super::Shop;
-use crate::console::http::{guard, Edge};
+use crate::console::http::{guard, session, Edge};
 use crate::console::{history, Console};
 
 const PAGE: &str = include_str!("../page/shop.html");
@@ -38,6 +38,7 @@ pub fn router(shop: Arc<Shop>, console: Arc<Console>, edge: Arc<Edge>) -> Router
             "/shop.js",
             get(|| async { ([(header::CONTENT_TYPE, "text/javascript")], SCRIPT) }),
         )
+        .route("/api/session", get(session))
         .route("/api/shop", get(rows))
         .route("/api/shop/events", get(events))
         .route("/api/history", get(history::list))
