@@ -11,113 +11,24 @@
 
 #[path = "console/http.rs"]
 mod http;
+mod shop {
+    pub mod serve;
+}
 // Shared with the integration tests, some of whose helpers this test does not use.
 #[path = "integration/mosquitto.rs"]
 #[allow(dead_code)]
 mod mosquitto;
 
-use std::io::{BufRead, BufReader};
-use std::net::SocketAddr;
-use std::path::Path;
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use http::request;
 use mosquitto::{on, Got, Mosquitto, Subscriber};
 use serde_json::Value;
+use shop::serve::{profile, Serve, JOB, KEEPALIVE};
 
 const BRIDGES: usize = 20;
-const JOB: &str = "double-start/job.toml";
-/// The keep-alive of each bridge, s.
-const KEEPALIVE: u64 = 5;
 /// A limit on waiting for what takes seconds: twenty bridges planning at once on a
 /// two-core host take a minute; the rest is margin for a busy CI host.
 const LONG: Duration = Duration::from_secs(300);
-
-fn repo() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// A `whirl serve` of the test: a bridge, or the overview.
-struct Serve {
-    child: Child,
-    addr: SocketAddr,
-    key: String,
-}
-
-impl Serve {
-    fn start(args: &[&str], db: &Path, dir: &Path) -> Serve {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_whirl"))
-            .args(["serve", "--listen", "127.0.0.1:0", "--jobs"])
-            .arg(repo().join("examples"))
-            .args(args)
-            .arg("--db")
-            .arg(db)
-            .env("WHIRL_LOCK_DIR", dir.join("locks"))
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        let addr = line
-            .split("http://")
-            .nth(1)
-            .and_then(|rest| rest.split('/').next())
-            .and_then(|a| a.parse().ok())
-            .unwrap_or_else(|| panic!("whirl serve said no address: {line:?}"));
-        let key = request(addr, "GET", "/api/session", &[], None).json()["page_key"]
-            .as_str()
-            .unwrap()
-            .to_owned();
-        Serve { child, addr, key }
-    }
-
-    /// An action, as the console's own page sends it.
-    fn post(&self, path: &str, body: &str) -> http::Answer {
-        request(
-            self.addr,
-            "POST",
-            path,
-            &[("X-Whirl-Page", &self.key)],
-            Some(body),
-        )
-    }
-
-    fn get(&self, path: &str) -> Value {
-        request(self.addr, "GET", path, &[], None).json()
-    }
-}
-
-impl Drop for Serve {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-/// The machine profile of bridge `n`: the built-in simulator, named `Lathe NN`, reporting
-/// to `broker`.
-fn profile(dir: &Path, n: usize, broker: &Mosquitto) -> std::path::PathBuf {
-    let sim = std::fs::read_to_string(repo().join("machine-profiles/sim.toml")).unwrap();
-    let sim = sim.replacen(
-        "name = \"whirl-sim: simulated XZC whirling lathe\"",
-        &format!("name = \"Lathe {n:02}\""),
-        1,
-    );
-    let path = dir.join(format!("lathe-{n:02}.toml"));
-    std::fs::write(
-        &path,
-        format!(
-            "{sim}\n[telemetry]\nmqtt = \"{}\"\nkeepalive_s = {KEEPALIVE}\n",
-            broker.url()
-        ),
-    )
-    .unwrap();
-    path
-}
 
 fn topic(n: usize) -> String {
     format!("whirl/lathe-{n:02}")

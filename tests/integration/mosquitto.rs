@@ -68,6 +68,12 @@ impl Mosquitto {
         Some(broker)
     }
 
+    /// Its process id, while it runs (for the shop benchmark's CPU and memory figures).
+    #[allow(dead_code)]
+    pub fn pid(&self) -> Option<u32> {
+        self.child.as_ref().map(Child::id)
+    }
+
     /// `mqtt://127.0.0.1:PORT`.
     pub fn url(&self) -> String {
         format!("mqtt://127.0.0.1:{}", self.port)
