@@ -1624,15 +1624,25 @@ fn attacker(html: String) -> u16 {
 /// that would need a preflight, and the console framed under it. Its title is `done`
 /// once every request has gone.
 fn attack_page(console: &str, machine: &str) -> String {
+    let machine = machine.replace(':', "%3A").replace(' ', "%20");
+    let mut urls: Vec<String> = ["hold", "stop", "resume", "resume-at"]
+        .iter()
+        .map(|b| format!("{console}/api/runs/{machine}/{b}"))
+        .collect();
+    urls.push(format!("{console}/api/runs"));
+    attack_of(console, &urls, machine.as_str())
+}
+
+/// The attacker's page of [`attack_page`], sending to `urls`, `console` framed, the form
+/// field `machine`.
+fn attack_of(console: &str, urls: &[String], machine: &str) -> String {
+    let urls = serde_json::to_string(urls).unwrap();
     format!(
         r#"<!doctype html><html><head><title>attacking</title></head><body>
 <iframe name="sink" hidden></iframe>
 <iframe id="framed" src="{console}/" width="800" height="600"></iframe>
 <script>
-const machine = encodeURIComponent({machine:?});
-const urls = ["hold", "stop", "resume", "resume-at"]
-  .map((b) => "{console}/api/runs/" + machine + "/" + b)
-  .concat(["{console}/api/runs"]);
+const urls = {urls};
 const pause = (ms) => new Promise((r) => setTimeout(r, ms));
 async function attack() {{
   for (const url of urls) {{
@@ -1989,23 +1999,29 @@ fn the_job_page_shows_the_profile_of_the_job_picked() {
 }
 
 #[test]
-fn the_shop_overview_in_a_browser_follows_a_bridges_run_and_shows_it_offline_when_killed() {
+fn the_shop_overview_in_a_browser_follows_a_bridges_run_holds_it_and_shows_it_offline_when_killed()
+{
     let Some((chromium, chromedriver)) = browser() else {
         return;
     };
     let Some(broker) = mosquitto::Mosquitto::start() else {
         return;
     };
-    // The overview and a bridge (a console of the built-in simulator) share the broker and
-    // the run records, as a shop's do.
+    // The overview and a bridge (a console of the built-in simulator) share the broker,
+    // the run records and the shop's token, as a shop's do.
     let shared = tempfile::tempdir().unwrap();
     let db = shared.path().join("shop.sqlite");
     let db = db.to_str().unwrap();
     let url = broker.url();
-    let shop = Serve::start(&["--shop", "--mqtt", &url, "--db", db]);
-    let mut bridge = Serve::start(&["--mqtt", &url, "--db", db]);
+    let shop = Serve::start(&["--shop", "--mqtt", &url, "--db", db, "--token", TOKEN]);
+    let mut bridge = Serve::start(&["--mqtt", &url, "--db", db, "--token", TOKEN]);
+    let token = [("X-Whirl-Token", TOKEN)];
     let driver = Driver::start(&chromedriver);
-    let page = Session::new(driver.1, chromium.to_str().unwrap());
+    let page = Session::with_args(
+        driver.1,
+        chromium.to_str().unwrap(),
+        &["--host-resolver-rules=MAP evil.test 127.0.0.1"],
+    );
     let long = Duration::from_secs(120);
     page.open(&shop.url());
     let state = |p: &Session| {
@@ -2016,12 +2032,12 @@ fn the_shop_overview_in_a_browser_follows_a_bridges_run_and_shows_it_offline_whe
     };
     let shows = |word: &'static str| move |p: &Session| (state(p) == word).then_some(());
     page.wait("the bridge's machine, idle", long, shows("IDLE"));
-    // A dry run at 50 times real time, held and resumed from the bridge's console.
+    // A dry run at 50 times real time, started at the bridge.
     let machine = bridge.get("/api/machines").json()[0]
         .as_str()
         .unwrap()
         .to_owned();
-    let started = bridge.post("/api/runs", &[], &run_request(&machine, 50.0));
+    let started = bridge.post("/api/runs", &token, &run_request(&machine, 50.0));
     assert_eq!(started.status, 200, "{}", started.body);
     page.wait("the run", long, shows("RUNNING"));
     page.wait("its progress", long, |p| {
@@ -2035,16 +2051,60 @@ fn the_shop_overview_in_a_browser_follows_a_bridges_run_and_shows_it_offline_whe
         .script("return document.querySelector('#machines-table tbody tr').cells[2].textContent");
     assert_eq!(job.as_str(), Some(JOB), "the run's job");
     shoot(&page, "shop-running");
+    let topic = page
+        .script("return document.querySelector('#machines-table tbody tr').dataset.machine")
+        .as_str()
+        .unwrap()
+        .to_owned();
+
+    // Another site's page cannot send the overview's Hold, nor can the page before the
+    // operator has logged in.
+    let overview = format!("http://127.0.0.1:{}", shop.addr.port());
+    let hold_url = format!("{overview}/api/shop/{topic}/hold");
+    let evil = attacker(attack_of(
+        &overview,
+        std::slice::from_ref(&hold_url),
+        &topic,
+    ));
+    attacked(&page, &format!("http://evil.test:{evil}/"));
+    let said = shop.said();
+    assert!(
+        said.contains(&format!("refused POST /api/shop/{topic}/hold")),
+        "{said}"
+    );
+    assert!(!said.contains("a Hold sent"), "{said}");
+    page.open(&shop.url());
+    page.wait("the run again", long, shows("RUNNING"));
+    page.click("#machines-table button.hold");
+    let refused = page.wait("the Hold refused without the token", long, |p| {
+        let text = p.text("hold-error");
+        (!text.is_empty()).then_some(text)
+    });
+    assert!(refused.contains("token"), "{refused}");
+    assert!(page.displayed("#login-link"));
+    // Logged in, the operator holds the machine from the overview; the bridge takes it
+    // with its console's token, the shop's.
+    page.open(&format!("{}login", shop.url()));
+    page.script(&format!(
+        "document.getElementById('token').value = {TOKEN:?}; return 0"
+    ));
+    page.click("#login");
+    page.wait("the login", long, |p| {
+        (p.script("return location.pathname === '/'").as_bool() == Some(true)).then_some(())
+    });
+    page.wait("the run after the login", long, shows("RUNNING"));
+    page.click("#machines-table button.hold");
+    page.wait("the hold", long, shows("HELD"));
+    assert!(shop.said().contains("a Hold sent"), "{}", shop.said());
+    shoot(&page, "shop-held");
     let press = |button: &str| {
         let path = format!(
             "/api/runs/{}/{button}",
             machine.replace(' ', "%20").replace(':', "%3A")
         );
-        let answer = bridge.post(&path, &[], "");
+        let answer = bridge.post(&path, &token, "");
         assert_eq!(answer.status, 200, "{button}: {}", answer.body);
     };
-    press("hold");
-    page.wait("the hold", long, shows("HELD"));
     press("resume");
     page.wait("the resume", long, shows("RUNNING"));
     press("stop");
@@ -2058,8 +2118,8 @@ fn the_shop_overview_in_a_browser_follows_a_bridges_run_and_shows_it_offline_whe
             .to_owned();
         (state(p) == "IDLE" && text.contains("resumes at line")).then_some(text)
     });
-    // The history, read from the shared records, has the bridge's run (its record closed
-    // just after its end: searched again until it is).
+    // The history, read from the shared records, has the bridge's run and the overview's
+    // Hold in its notes (its record closed just after its end: searched again until it is).
     page.wait("the run in the history", long, |p| {
         p.click("#history-form button");
         p.script(
@@ -2069,8 +2129,14 @@ fn the_shop_overview_in_a_browser_follows_a_bridges_run_and_shows_it_offline_whe
         .filter(|outcome| *outcome == "stopped")
         .map(str::to_owned)
     });
-    // Killed outright: the broker publishes the bridge's will once 1.5 keep-alives (15 s)
-    // pass in silence, and the overview shows it offline.
+    let id = page.script("return document.querySelector('#history-table tbody tr td').textContent");
+    let run = bridge
+        .get_with(&format!("/api/history/{}", id.as_str().unwrap()), &token)
+        .json();
+    let notes = run["notes"].to_string();
+    assert!(notes.contains("the shop overview"), "{notes}");
+    // Killed outright: the broker publishes the bridge's will, and the overview shows it
+    // offline.
     bridge.child.kill().unwrap();
     bridge.child.wait().unwrap();
     page.wait("the bridge offline", long, shows("OFFLINE"));

@@ -89,7 +89,7 @@ impl Edge {
 /// Who sent a request, for the console's log and the notes of what they pressed: the
 /// client's address and, if it logged in, the first digits of its session.
 #[derive(Debug, Clone)]
-struct Client(String);
+pub(super) struct Client(pub(super) String);
 
 /// The console's routes.
 pub fn router(console: Arc<Console>, edge: Arc<Edge>) -> Router {
@@ -281,7 +281,7 @@ fn authorised(edge: &Edge, headers: &HeaderMap) -> Result<(), ApiError> {
 }
 
 /// The login page, with the page key its form posts back.
-async fn login_page(Extension(edge): Extension<Arc<Edge>>) -> Html<String> {
+pub(super) async fn login_page(Extension(edge): Extension<Arc<Edge>>) -> Html<String> {
     Html(login_html(&edge, ""))
 }
 
@@ -292,7 +292,7 @@ fn login_html(edge: &Edge, said: &str) -> String {
 }
 
 #[derive(serde::Deserialize)]
-struct LoginForm {
+pub(super) struct LoginForm {
     token: String,
     /// The page key the login page carries.
     #[serde(default)]
@@ -301,7 +301,7 @@ struct LoginForm {
 
 /// The login form: the token, if right, opens a session whose random id the cookie holds.
 /// Wrong tokens are limited ([`Guesses`]) and each is said on standard error.
-async fn login(
+pub(super) async fn login(
     Extension(edge): Extension<Arc<Edge>>,
     Extension(client): Extension<Client>,
     Form(form): Form<LoginForm>,

@@ -13,6 +13,7 @@
 //!   lock);
 //! - [`registry`]: the runs, one slot per machine, which live in the server, not the page;
 //! - [`runner`]: a run from request to end, on a thread of its own;
+//! - [`remote`]: the shop overview's Hold, taken from the broker with the console's token;
 //! - [`resume`]: a stopped dry run resumed where it stopped, re-entering along the groove,
 //!   over the transport it ran on;
 //! - [`record`]: the runs in the run records ([`crate::records`]);
@@ -31,6 +32,7 @@ pub mod login;
 pub mod paths;
 pub mod record;
 pub mod registry;
+pub mod remote;
 pub mod resume;
 pub mod runner;
 pub mod shop;

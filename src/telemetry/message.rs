@@ -7,6 +7,7 @@
 //! | `state` | [`State`]: the machine now (idle, running, held, alarm), its run and its last ending | 1 | yes |
 //! | `event` | [`Event`]: a run's start and end, a hold, a resume, an alarm, a refused line, an override | 1 | no |
 //! | `progress` | [`Progress`]: line, percent, time left, position, at a bounded rate | 0 | no |
+//! | `command` | [`Command`], *to* the bridge: the shop overview's Hold | 1 | no |
 //!
 //! Every `state` and `event` carries the bridge's `session` (new at each start of a
 //! bridge) and a `seq` counting from 1 in it: a reader that sees a `seq` twice has seen a
@@ -24,6 +25,21 @@ pub const STATE: &str = "state";
 pub const EVENT: &str = "event";
 /// The topic of [`Progress`].
 pub const PROGRESS: &str = "progress";
+/// The topic of [`Command`], which the bridge reads.
+pub const COMMAND: &str = "command";
+
+/// A command to a bridge: the only one is a Hold, from the shop overview. The bridge takes
+/// it only with its console's own token (`whirl serve --token`), which the overview, given
+/// the shop's token, carries.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Command {
+    /// `hold`.
+    pub command: String,
+    /// The token it carries.
+    pub token: String,
+    /// Who asked, for the run's notes (the overview's client).
+    pub by: String,
+}
 
 /// The bridge: online or not, and who it is.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

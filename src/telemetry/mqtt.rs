@@ -20,7 +20,7 @@ use tokio::time::Instant;
 use crate::config::telemetry::TelemetrySettings;
 use crate::log::{self, Record, Tap};
 use crate::records::{Process, Timestamp};
-use crate::telemetry::message::{self, Status};
+use crate::telemetry::message::{self, Command, Status};
 use crate::telemetry::outbox::{self, Outbox};
 use crate::telemetry::tracker::{self, Out, RunContext, Tracker};
 use crate::transport::{Progress, ProgressFn};
@@ -71,11 +71,21 @@ pub struct Telemetry {
 }
 
 /// What a run hands its telemetry through: clonable, never waiting.
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct Handle {
     inputs: mpsc::Sender<Input>,
     lost: Arc<AtomicU64>,
     root: String,
+    commands: Commands,
+}
+
+/// Who takes the commands that come for the bridge (see [`Handle::on_command`]).
+type Commands = Arc<std::sync::Mutex<Option<Box<dyn Fn(Command) + Send>>>>;
+
+impl std::fmt::Debug for Handle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Handle").field("root", &self.root).finish()
+    }
 }
 
 impl Telemetry {
@@ -105,9 +115,11 @@ impl Telemetry {
             inputs,
             lost: Arc::new(AtomicU64::new(0)),
             root: identity.root.clone(),
+            commands: Commands::default(),
         };
         let settings = settings.clone();
         let lost = handle.lost.clone();
+        let commands = handle.commands.clone();
         let thread = std::thread::Builder::new()
             .name("whirl-telemetry".into())
             .spawn(move || {
@@ -115,7 +127,8 @@ impl Telemetry {
                     .enable_all()
                     .build()
                     .expect("a runtime of one thread builds");
-                let mut closed = runtime.block_on(publish(&settings, identity, receiver, closing));
+                let mut closed =
+                    runtime.block_on(publish(&settings, identity, receiver, closing, commands));
                 closed.lost = lost.load(Ordering::Relaxed);
                 closed
             })?;
@@ -179,6 +192,13 @@ impl Handle {
                 then(p);
             }
         })
+    }
+
+    /// Who takes the commands the broker brings for this bridge (the shop overview's Hold):
+    /// `take` is called on the telemetry thread with each, to check its token and act.
+    /// Without one, a command is said and dropped.
+    pub fn on_command(&self, take: impl Fn(Command) + Send + 'static) {
+        *self.commands.lock().unwrap_or_else(|p| p.into_inner()) = Some(Box::new(take));
     }
 
     /// Hands `input` over without waiting; counted as lost if the channel is full.
@@ -289,6 +309,7 @@ async fn publish(
     identity: Identity,
     mut inputs: mpsc::Receiver<Input>,
     mut closing: oneshot::Receiver<()>,
+    commands: Commands,
 ) -> Closed {
     let broker = settings.broker().expect("telemetry settings are validated");
     let payload = |status: &Status| serde_json::to_vec(status).expect("a status serialises");
@@ -335,6 +356,7 @@ async fn publish(
     let mut inputs_open = true;
     let mut disconnecting = false;
     let url = &settings.mqtt;
+    let command_topic = format!("{}/{}", identity.root, message::COMMAND);
     loop {
         if connection.is_none() && retry_at.is_none_or(|at| at <= Instant::now()) {
             connection = Some(Connection::open(options.clone()));
@@ -375,6 +397,10 @@ async fn publish(
             }
             event = next_event(&mut connection) => match event {
                 Some(Ok(Event::Incoming(Packet::ConnAck(_)))) => {
+                    if let Some(c) = &connection {
+                        // A clean session keeps no subscription: each connection asks again.
+                        let _ = c.client.try_subscribe(&command_topic, QoS::AtLeastOnce);
+                    }
                     outbox.connected();
                     retry = FIRST_RETRY;
                     if said.away {
@@ -387,6 +413,11 @@ async fn publish(
                     }
                 }
                 Some(Ok(Event::Incoming(Packet::PubAck(_)))) => outbox.acked(),
+                Some(Ok(Event::Incoming(Packet::Publish(p)))) if p.topic == command_topic => {
+                    if let Err(dropped) = take_command(&p.payload, &commands) {
+                        tracing::warn!("telemetry: {dropped}");
+                    }
+                }
                 Some(Ok(Event::Outgoing(Outgoing::Disconnect))) => break,
                 Some(Ok(_)) => {}
                 Some(Err(error)) => {
@@ -421,6 +452,24 @@ async fn publish(
         undelivered: outbox.waiting(),
         dropped: outbox.dropped(),
         lost: 0,
+    }
+}
+
+/// A command from the broker, to whoever takes them; why one was dropped: it does not read,
+/// or it came to a bridge that takes none.
+fn take_command(payload: &[u8], commands: &Commands) -> Result<(), String> {
+    let command: Command = serde_json::from_slice(payload)
+        .map_err(|e| format!("a command that does not read was dropped: {e}"))?;
+    match commands.lock().unwrap_or_else(|p| p.into_inner()).as_ref() {
+        Some(take) => {
+            take(command);
+            Ok(())
+        }
+        None => Err(format!(
+            "a {} from {} was dropped: this bridge takes no remote command (only `whirl \
+             serve` does)",
+            command.command, command.by
+        )),
     }
 }
 
@@ -462,5 +511,26 @@ fn queue(outgoing: outbox::Outgoing, outbox: &mut Outbox, said: &mut Said) {
              events are dropped (the readers see the gap in `seq`)"
         );
         said.full = true;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_command_goes_to_its_taker_and_is_dropped_unread_or_untaken() {
+        let commands = Commands::default();
+        let hold = br#"{"command": "hold", "token": "t", "by": "127.0.0.1:4711"}"#;
+        let dropped = take_command(hold, &commands).unwrap_err();
+        assert!(dropped.contains("takes no remote command"), "{dropped}");
+        let taken = Arc::new(std::sync::Mutex::new(Vec::new()));
+        let kept = taken.clone();
+        *commands.lock().unwrap() = Some(Box::new(move |c: Command| kept.lock().unwrap().push(c)));
+        take_command(hold, &commands).unwrap();
+        assert_eq!(taken.lock().unwrap()[0].by, "127.0.0.1:4711");
+        let dropped = take_command(b"{\"command\": 1}", &commands).unwrap_err();
+        assert!(dropped.contains("does not read"), "{dropped}");
+        assert_eq!(taken.lock().unwrap().len(), 1);
     }
 }

@@ -96,6 +96,11 @@ pub(crate) fn run(
     runtime.block_on(async move {
         console.records = records(db, allow_unrecorded).await?;
         let console = Arc::new(console);
+        whirl::console::remote::take_commands(
+            &console,
+            token.clone(),
+            tokio::runtime::Handle::current(),
+        );
         let (listener, address, edge) = bind(&listen, token).await?;
         say!("whirl serve: the console is at http://{address}/ (Ctrl-C ends it)")?;
         let mut signals = Signals::install()?;
@@ -178,7 +183,7 @@ pub(crate) fn shop(
         .build()?;
     runtime.block_on(async move {
         console.records = records(db, allow_unrecorded).await?;
-        let shop = Arc::new(Shop::new(prefix));
+        let shop = Arc::new(Shop::new(prefix, listen.token.map(str::to_owned)));
         let following = tokio::spawn(feed::follow(Arc::clone(&shop), broker, None));
         let (listener, address, edge) = bind(&listen, token).await?;
         say!("whirl serve --shop: the shop overview is at http://{address}/ (Ctrl-C ends it)")?;

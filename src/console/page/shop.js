@@ -4,6 +4,10 @@
 
 const $ = (id) => document.getElementById(id);
 
+// The page key (from /api/session): the Hold carries it, which only a page of the
+// overview's own origin can read, so no other site's page can press it.
+let pageKey = "";
+
 // A machine's state in words and colour, as the console's banner says it.
 const STATES = {
   idle: ["IDLE", "idle"],
@@ -59,7 +63,34 @@ function render(machines) {
       const link = Object.assign(document.createElement("a"), { href: m.console, textContent: "console", rel: "noopener" });
       bridge.append(link);
     }
+    const action = row.insertCell();
+    if (m.online && m.state === "running") {
+      const button = Object.assign(document.createElement("button"), { textContent: "Hold", className: "hold" });
+      button.onclick = () => hold(m.topic);
+      action.append(button);
+    }
   }
+}
+
+// A Hold to a running machine's bridge; the machine's row says whether it held.
+async function hold(machine) {
+  $("hold-error").textContent = "";
+  const response = await fetch("/api/shop/" + encodeURIComponent(machine) + "/hold", {
+    method: "POST",
+    headers: { "X-Whirl-Page": pageKey },
+  });
+  if (!response.ok) {
+    const text = await response.text();
+    let said = text;
+    try { said = JSON.parse(text).error; } catch { /* plain words */ }
+    $("hold-error").textContent = `Hold of ${machine} not sent: ${said}`;
+  }
+}
+
+async function session() {
+  const s = await (await fetch("/api/session")).json();
+  pageKey = s.page_key;
+  $("login-link").hidden = !s.token_required || s.authorised;
 }
 
 function connect() {
@@ -99,5 +130,6 @@ async function history(event) {
 }
 
 $("history-form").addEventListener("submit", history);
+session();
 connect();
 history();

@@ -28,6 +28,7 @@ pub async fn follow(shop: Arc<Shop>, broker: Broker, login: Option<(String, Stri
         options.set_credentials(user, password);
     }
     let (client, mut events) = AsyncClient::new(options, 16);
+    let _ = shop.client.set(client.clone());
     let mut away = false;
     loop {
         match events.poll().await {

@@ -1,21 +1,22 @@
 //! The overview's routes: its page, the machines as JSON and as server-sent events, and the
 //! shop's history (the console's own history API, over the shared run records). Every
-//! request goes through the console's gate ([`crate::console::http`]); the overview has no
-//! action but reading.
+//! request goes through the console's gate ([`crate::console::http`]): its one action, a
+//! Hold on a running machine, needs the page's key and the token, as the console's do.
 
 use std::convert::Infallible;
 use std::sync::Arc;
 use std::time::Duration;
 
-use axum::http::header;
+use axum::extract::Path;
+use axum::http::{header, StatusCode};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::Html;
-use axum::routing::get;
+use axum::routing::{get, post};
 use axum::{Extension, Json, Router};
 
 use super::view::MachineRow;
-use super::Shop;
-use crate::console::http::{guard, session, Edge};
+use super::{HoldError, Shop};
+use crate::console::http::{guard, login, login_page, session, ApiError, Client, Edge};
 use crate::console::{history, Console};
 
 const PAGE: &str = include_str!("../page/shop.html");
@@ -38,8 +39,10 @@ pub fn router(shop: Arc<Shop>, console: Arc<Console>, edge: Arc<Edge>) -> Router
             "/shop.js",
             get(|| async { ([(header::CONTENT_TYPE, "text/javascript")], SCRIPT) }),
         )
+        .route("/login", get(login_page).post(login))
         .route("/api/session", get(session))
         .route("/api/shop", get(rows))
+        .route("/api/shop/{machine}/hold", post(hold))
         .route("/api/shop/events", get(events))
         .route("/api/history", get(history::list))
         .route("/api/history/{id}", get(history::show))
@@ -57,6 +60,27 @@ async fn rows(Extension(shop): Extension<Arc<Shop>>) -> Json<Vec<MachineRow>> {
 }
 
 /// The machines at once, then again after every change (at most one each [`EVENT_GAP`]).
+/// A Hold to a running machine's bridge (202: sent; the page shows whether it held).
+async fn hold(
+    Extension(shop): Extension<Arc<Shop>>,
+    Extension(client): Extension<Client>,
+    Path(machine): Path<String>,
+) -> Result<(StatusCode, Json<serde_json::Value>), ApiError> {
+    shop.hold(&machine, &client.0).map_err(|e| {
+        let status = match e {
+            HoldError::Unknown(_) => StatusCode::NOT_FOUND,
+            HoldError::NotRunning(..) => StatusCode::CONFLICT,
+            HoldError::NoToken | HoldError::Broker(_) => StatusCode::SERVICE_UNAVAILABLE,
+        };
+        ApiError(status, e.to_string())
+    })?;
+    tracing::warn!("shop overview: a Hold sent to {machine} for {}", client.0);
+    Ok((
+        StatusCode::ACCEPTED,
+        Json(serde_json::json!({ "sent": "hold" })),
+    ))
+}
+
 /// The stream ends when the overview does ([`Edge::close`]), so that its server can.
 async fn events(
     Extension(shop): Extension<Arc<Shop>>,
