@@ -260,8 +260,8 @@ impl Connection {
         }
     }
 
-    /// Publishes what the outbox hands out now. The client's channel holds the whole
-    /// window and the progress, so a refusal means the loop has ended: its error comes.
+    /// Publishes what the outbox hands out now; one the client's queue cannot take (its loop
+    /// busy, or ended: then its error comes) goes back to the outbox, to go first next time.
     fn publish(&self, root: &str, outbox: &mut Outbox) {
         while let Some(m) = outbox.to_send() {
             let qos = if m.acknowledged {
@@ -272,9 +272,10 @@ impl Connection {
             let topic = format!("{root}/{}", m.topic);
             if self
                 .client
-                .try_publish(topic, qos, m.retain, m.payload)
+                .try_publish(topic, qos, m.retain, m.payload.clone())
                 .is_err()
             {
+                outbox.unsend(m);
                 return;
             }
         }

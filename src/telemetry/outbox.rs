@@ -139,6 +139,16 @@ impl Outbox {
         self.progress.take()
     }
 
+    /// The last message [`Outbox::to_send`] handed out could not be handed on (the
+    /// client's queue full): it is the next to send again.
+    pub fn unsend(&mut self, message: Outgoing) {
+        if message.acknowledged {
+            self.sent = self.sent.saturating_sub(1);
+        } else if self.progress.is_none() {
+            self.progress = Some(message);
+        }
+    }
+
     /// QoS 1 messages not yet acknowledged.
     pub fn waiting(&self) -> usize {
         self.queue.len()
@@ -242,6 +252,22 @@ mod tests {
         outbox.disconnected();
         outbox.connected();
         assert_eq!(drain(&mut outbox), [("status", 0), ("state", 7)]);
+    }
+
+    #[test]
+    fn a_message_not_handed_on_goes_next_and_is_acknowledged_in_its_place() {
+        let mut outbox = Outbox::new(birth(), 10, 10);
+        outbox.connected();
+        outbox.push(message("event", 1));
+        outbox.push(message("event", 2));
+        assert_eq!(outbox.to_send().map(|m| m.topic), Some("status"));
+        let refused = outbox.to_send().unwrap();
+        outbox.unsend(refused);
+        assert_eq!(drain(&mut outbox), [("event", 1), ("event", 2)]);
+        for _ in 0..3 {
+            outbox.acked();
+        }
+        assert_eq!(outbox.waiting(), 0);
     }
 
     #[test]
