@@ -18,24 +18,7 @@ fn a_program_streams_to_the_simulator_with_every_line_acknowledged_and_logged() 
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("grbl");
     let _sim = sim(&link);
-    // The lead-in and 60 linked moves of a planned program, then the retract.
-    let planned = dir.path().join("p.nc");
-    let o = util::whirl(&[
-        OsStr::new("plan"),
-        util::example("double-start").as_os_str(),
-        OsStr::new("-o"),
-        planned.as_os_str(),
-    ]);
-    assert!(o.status.success());
-    let text = std::fs::read_to_string(&planned).unwrap();
-    // Its provenance header kept: the job and the machine are those it was planned from.
-    let header = text
-        .lines()
-        .take_while(|l| l.contains("whirl provenance"))
-        .count();
-    let mut lines: Vec<&str> = text.lines().take(header + 66).collect();
-    lines.extend(["G94", "G0 X0", "M5", "M2"]);
-    let program = util::write(dir.path(), "short.nc", &(lines.join("\n") + "\n"));
+    let (program, lines) = util::short_planned_program(dir.path());
     let log = dir.path().join("exec.jsonl");
     let o = util::whirl(&[
         OsStr::new("stream"),

@@ -533,3 +533,59 @@ fn a_bridge_killed_outright_is_shown_offline_by_its_last_will_within_one_and_a_h
         "offline {after:?} after the kill"
     );
 }
+
+#[test]
+fn a_stream_to_the_machine_is_published_with_its_program_and_what_it_was_planned_from() {
+    let Some(broker) = Mosquitto::start() else {
+        return;
+    };
+    let subscriber = Subscriber::new(&broker, "whirl/#");
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("grbl");
+    let _sim = util::Sim::serving(
+        OsStr::new("--pty"),
+        &link,
+        &[OsStr::new("--time-scale"), OsStr::new("50")],
+    );
+    let (program, lines) = util::short_planned_program(dir.path());
+    let log = dir.path().join("exec.jsonl");
+    let url = broker.url();
+    let o = util::whirl(&[
+        OsStr::new("stream"),
+        program.as_os_str(),
+        OsStr::new("--port"),
+        link.as_os_str(),
+        OsStr::new("--log"),
+        log.as_os_str(),
+        OsStr::new("--mqtt"),
+        OsStr::new(&url),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let got = subscriber.wait(DELIVERY, |got| {
+        on(got, "event").iter().any(|g| g.json["kind"] == "end")
+    });
+    let events = on(&got, "event");
+    let run = &events[0].json["run"];
+    assert_eq!(events[0].json["kind"], "start");
+    assert_eq!(run["kind"], "stream");
+    assert_eq!(run["transport"], "serial");
+    assert_eq!(run["lines"], lines.len());
+    assert!(
+        run["program"].as_str().unwrap().ends_with("short.nc"),
+        "{run}"
+    );
+    // The program's header says what it was planned from: the example and the simulator.
+    assert!(
+        run["provenance"]["job"]["path"]
+            .as_str()
+            .unwrap()
+            .ends_with("double-start/job.toml"),
+        "{run}"
+    );
+    assert_eq!(
+        run["provenance"]["machine_name"],
+        "whirl-sim: simulated XZC whirling lathe"
+    );
+    let end = events.iter().find(|g| g.json["kind"] == "end").unwrap();
+    assert_eq!(end.json["completed"], true);
+}

@@ -50,6 +50,29 @@ pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     path
 }
 
+/// The double-start example planned (its provenance header kept), cut to the lead-in and
+/// 60 linked moves, then a retract: a real program that streams in a second. Its path in
+/// `dir` and its lines.
+pub fn short_planned_program(dir: &Path) -> (PathBuf, Vec<String>) {
+    let planned = dir.join("p.nc");
+    let o = whirl(&[
+        std::ffi::OsStr::new("plan"),
+        example("double-start").as_os_str(),
+        std::ffi::OsStr::new("-o"),
+        planned.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&planned).unwrap();
+    let header = text
+        .lines()
+        .take_while(|l| l.contains("whirl provenance"))
+        .count();
+    let mut lines: Vec<String> = text.lines().take(header + 66).map(str::to_owned).collect();
+    lines.extend(["G94", "G0 X0", "M5", "M2"].map(str::to_owned));
+    let program = write(dir, "short.nc", &(lines.join("\n") + "\n"));
+    (program, lines)
+}
+
 /// A program line without its N word (grblHAL programs number every line).
 pub fn block(line: &str) -> &str {
     match line.strip_prefix('N') {
