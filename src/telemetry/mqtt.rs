@@ -405,7 +405,8 @@ async fn publish(
                     outbox.connected();
                     retry = FIRST_RETRY;
                     if said.away {
-                        tracing::info!(
+                        // Said as loudly as its going was.
+                        tracing::warn!(
                             "telemetry: the broker at {url} answers again; {} queued \
                              messages go now",
                             outbox.waiting()

@@ -38,7 +38,7 @@ pub async fn follow(shop: Arc<Shop>, broker: Broker, login: Option<(String, Stri
                     let _ = client.try_subscribe(filter, QoS::AtLeastOnce);
                 }
                 if away {
-                    tracing::info!("shop overview: the broker answers again");
+                    tracing::warn!("shop overview: the broker answers again");
                     away = false;
                 }
             }
