@@ -16,8 +16,8 @@ use std::time::{Duration, Instant};
 use serde_json::Value;
 use whirl::records::process::Process;
 use whirl::records::{
-    Ending, FileSnapshot, Filter, Kind, LogPlace, Measured, NewRun, Note, NoteKind, Outcome, Place,
-    ProgramId, Store, Timestamp,
+    Ending, FileSnapshot, Filter, Kept, Kind, LogPlace, Measured, NewRun, Note, NoteKind, Outcome,
+    Place, ProgramId, Store, Timestamp,
 };
 
 use crate::util::{self, Sim};
@@ -265,17 +265,22 @@ async fn store_suite(place: Place) {
     // A plan: its inputs kept whole, the program and report known at its end.
     let mut plan = new_run(Kind::Plan, "jobs/Double-Start.toml", "sim", None);
     plan.plan_report = None;
-    let plan_id = store.begin(&plan).await.unwrap();
+    let plan_run = store.begin(&plan).await.unwrap();
+    let plan_id = plan_run.id;
+    assert_eq!(plan_run.kept, Kept::Database);
     let program = ProgramId::of("double-start.nc", "G21 G90\nG1 X1 F100\nM2\n");
     let mut done = Ending::new(Outcome::Completed);
     done.program = Some(program.clone());
     done.plan_report = Some(r#"{"segments":3,"delta_mm":0.005}"#.into());
-    assert!(store.finish(plan_id, &done).await.unwrap());
+    assert!(store.finish(&plan_run, &done).await.unwrap().closed);
     // A record is closed once: a second ending changes nothing.
-    assert!(!store
-        .finish(plan_id, &Ending::new(Outcome::Failed))
-        .await
-        .unwrap());
+    assert!(
+        !store
+            .finish(&plan_run, &Ending::new(Outcome::Failed))
+            .await
+            .unwrap()
+            .closed
+    );
     let shown = store.show(plan_id).await.unwrap().unwrap();
     assert_eq!(shown.summary.kind, Kind::Plan);
     assert_eq!(shown.summary.outcome, Outcome::Completed);
@@ -283,7 +288,8 @@ async fn store_suite(place: Place) {
     assert_eq!(shown.machine_file, plan.machine);
     assert_eq!(shown.program_id, Some(program.clone()));
     assert_eq!(shown.plan_report.as_ref().unwrap()["segments"], 3);
-    assert_eq!(shown.host, plan.process.host);
+    assert_eq!(shown.summary.host, plan.process.host);
+    assert_eq!(shown.uid.as_ref(), Some(&plan_run.uid));
     assert_eq!(shown.pid, std::process::id());
     let (started, ended) = (
         Timestamp::parse(&shown.summary.started_at).unwrap(),
@@ -304,11 +310,12 @@ async fn store_suite(place: Place) {
         path: PathBuf::from("/var/log/whirl/exec.jsonl"),
         offset: 4096,
     });
-    let stream_id = store.begin(&stream).await.unwrap();
+    let stream_run = store.begin(&stream).await.unwrap();
+    let stream_id = stream_run.id;
     assert!(stream_id > plan_id);
     store
         .note(
-            stream_id,
+            &stream_run,
             &Note {
                 line: Some(80),
                 ..Note::new(NoteKind::Hold, "Hold pressed")
@@ -317,7 +324,7 @@ async fn store_suite(place: Place) {
         .await
         .unwrap();
     store
-        .note(stream_id, &Note::new(NoteKind::Resume, "Resume pressed"))
+        .note(&stream_run, &Note::new(NoteKind::Resume, "Resume pressed"))
         .await
         .unwrap();
     let mut stopped = Ending::new(Outcome::Stopped);
@@ -335,7 +342,7 @@ async fn store_suite(place: Place) {
             ..Note::new(NoteKind::Stop, "ALARM:64")
         },
     ];
-    assert!(store.finish(stream_id, &stopped).await.unwrap());
+    assert!(store.finish(&stream_run, &stopped).await.unwrap().closed);
     let shown = store.show(stream_id).await.unwrap().unwrap();
     assert_eq!(shown.summary.outcome, Outcome::Stopped);
     assert_eq!(
@@ -374,7 +381,7 @@ async fn store_suite(place: Place) {
         Some(&program),
     );
     resumed.resume_from = Some(120);
-    let resumed_id = store.begin(&resumed).await.unwrap();
+    let resumed_id = store.begin(&resumed).await.unwrap().id;
     assert_eq!(
         store.show(resumed_id).await.unwrap().unwrap().resumes,
         Some(stream_id)
@@ -382,7 +389,8 @@ async fn store_suite(place: Place) {
     let other = ProgramId::of("other.nc", "G0 X2\n");
     let mut unrelated = new_run(Kind::Stream, "jobs/other.toml", "sim", Some(&other));
     unrelated.resume_from = Some(120);
-    let unrelated_id = store.begin(&unrelated).await.unwrap();
+    let unrelated_run = store.begin(&unrelated).await.unwrap();
+    let unrelated_id = unrelated_run.id;
     assert_eq!(
         store.show(unrelated_id).await.unwrap().unwrap().resumes,
         None
@@ -395,7 +403,7 @@ async fn store_suite(place: Place) {
         delta_mm: 0.005,
         within_delta: true,
     });
-    store.finish(unrelated_id, &measured).await.unwrap();
+    store.finish(&unrelated_run, &measured).await.unwrap();
     assert_eq!(
         store.show(unrelated_id).await.unwrap().unwrap().measured,
         measured.measured
@@ -506,6 +514,7 @@ async fn store_suite(place: Place) {
                 ))
                 .await
                 .unwrap()
+                .id
         });
     }
     let mut ids = writers.join_all().await;
@@ -576,18 +585,19 @@ async fn orphans(store: &Store) {
         path: log.clone(),
         offset,
     });
-    let gone_id = store.begin(&gone).await.unwrap();
+    let gone_id = store.begin(&gone).await.unwrap().id;
     let mut elsewhere = new_run(Kind::Stream, "jobs/elsewhere.toml", "sim", None);
     elsewhere.process = Process {
         host: format!("{}-elsewhere", here.host),
         pid: gone_pid,
         ..here.clone()
     };
-    let elsewhere_id = store.begin(&elsewhere).await.unwrap();
+    let elsewhere_id = store.begin(&elsewhere).await.unwrap().id;
     let mine_id = store
         .begin(&new_run(Kind::Stream, "jobs/mine.toml", "sim", None))
         .await
-        .unwrap();
+        .unwrap()
+        .id;
 
     let closed = store.close_orphans(&here).await.unwrap();
     assert!(
@@ -1660,7 +1670,7 @@ fn a_database_a_newer_whirl_has_migrated_further_is_refused_naming_it() {
             .unwrap();
         sqlx::raw_sql(
             "INSERT INTO _sqlx_migrations (version, description, success, checksum, \
-             execution_time) VALUES (3, 'from a newer whirl', TRUE, x'00', 0)",
+             execution_time) VALUES (99, 'from a newer whirl', TRUE, x'00', 0)",
         )
         .execute(&mut conn)
         .await
@@ -1671,7 +1681,7 @@ fn a_database_a_newer_whirl_has_migrated_further_is_refused_naming_it() {
     let o = whirl_in(&db, dir.path(), &[OsStr::new("runs"), OsStr::new("list")]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
-        stderr(&o).contains(&db) && stderr(&o).contains("migration 3"),
+        stderr(&o).contains(&db) && stderr(&o).contains("migration 99"),
         "{}",
         stderr(&o)
     );

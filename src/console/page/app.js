@@ -288,7 +288,8 @@ function render() {
   $("run-stream").disabled = running;
   showLock();
   if (!v) return;
-  const name = v.record ? "record " + v.record : "run " + v.id + " (unrecorded)";
+  const name = v.record ? "record " + v.record :
+    "run " + v.id + (v.spooled ? " (its record in the spool)" : " (unrecorded)");
   $("run-title").textContent = name + ": " + v.job + " on " + v.machine + " over " +
     v.transport + " at " + v.time_scale + "×" + (v.resumed_at ? ", resumed at line " + v.resumed_at : "") +
     (running ? (standing ? " (held)" : " (running)") : " (ended)");
