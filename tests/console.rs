@@ -890,7 +890,8 @@ fn found_in_history(
         let rows = rows(p);
         (rows.as_array().map_or(0, Vec::len) >= 2).then_some(rows)
     });
-    // Run, kind, sent to, outcome, started, took, machine, job, transport, resume at, why.
+    // Run, kind, sent to, outcome, started, took, machine, host, job, transport, resume
+    // at, why.
     let (resume, stopped) = (&found[0], &found[1]);
     assert_eq!(resume[1], "serve", "{found}");
     // Dry runs: sent to the simulator, not to a machine.
@@ -898,10 +899,13 @@ fn found_in_history(
     assert_eq!(stopped[2], "simulator (dry run)", "{found}");
     assert_eq!(resume[3], "completed", "{found}");
     assert_eq!(stopped[3], "stopped", "{found}");
-    assert_eq!(stopped[9], line.to_string(), "{found}");
-    assert!(resume[7].as_str().unwrap().contains(job), "{found}");
+    // The host each ran on: a shop's database holds every bridge's runs.
+    let host = whirl::records::Process::current().host;
+    assert_eq!((&resume[7], &stopped[7]), (&host.as_str().into(), &host.as_str().into()));
+    assert_eq!(stopped[10], line.to_string(), "{found}");
+    assert!(resume[8].as_str().unwrap().contains(job), "{found}");
     assert_eq!(
-        (&resume[8], &stopped[8]),
+        (&resume[9], &stopped[9]),
         (&transport.into(), &transport.into()),
         "{found}"
     );

@@ -19,7 +19,9 @@ use std::time::Duration;
 use sqlx::any::{AnyConnectOptions, AnyPoolOptions, AnyRow};
 use sqlx::migrate::{Migration, MigrationType, Migrator};
 use sqlx::sqlite::SqliteConnectOptions;
-use sqlx::{AnyPool, ConnectOptions, Executor as _, Row, SqlSafeStr};
+use sqlx::{
+    AnyConnection, AnyPool, ConnectOptions, Connection as _, Executor as _, Row, SqlSafeStr,
+};
 use tokio::sync::OnceCell;
 
 use super::from_log::{read_run, LogFacts};
@@ -84,6 +86,8 @@ pub(super) struct Database {
     /// How messages name it.
     place: String,
     backend: Backend,
+    /// How to reach a PostgreSQL server, to tell that it is down before a run waits on it.
+    probe: Option<AnyConnectOptions>,
     /// Its schema brought up to date, once an opening has reached it (a PostgreSQL
     /// database is reached when first used, which may be after it was opened).
     ready: Arc<OnceCell<()>>,
@@ -120,6 +124,7 @@ impl Database {
             pool,
             place,
             backend: Backend::Sqlite,
+            probe: None,
             ready: Arc::new(OnceCell::new()),
         };
         database.ready().await?;
@@ -133,9 +138,10 @@ impl Database {
             error,
         })?;
         Ok(Database {
-            pool: pool_options().connect_lazy_with(options),
+            pool: pool_options().connect_lazy_with(options.clone()),
             place,
             backend: Backend::Postgres,
+            probe: Some(options),
             ready: Arc::new(OnceCell::new()),
         })
     }
@@ -151,17 +157,22 @@ impl Database {
     pub(super) async fn ready(&self) -> Result<(), RecordError> {
         self.ready
             .get_or_try_init(|| async {
-                let reached = self
-                    .bounded_raw(self.pool.acquire())
-                    .await
-                    .map_err(|error| match error {
-                        Bounded::TimedOut => self.timed_out("reach the database"),
-                        Bounded::Failed(error) => RecordError::Open {
-                            place: self.place.clone(),
-                            error,
-                        },
-                    })?;
-                drop(reached);
+                if let Some(options) = &self.probe {
+                    // A connection of its own, not the pool's: the pool tries a refused
+                    // connection again until its wait is over, as for a server starting
+                    // up; a server that is down is known at once.
+                    let probe = self
+                        .bounded_raw(AnyConnection::connect_with(options))
+                        .await
+                        .map_err(|error| match error {
+                            Bounded::TimedOut => self.timed_out("reach the database"),
+                            Bounded::Failed(error) => RecordError::Open {
+                                place: self.place.clone(),
+                                error,
+                            },
+                        })?;
+                    let _ = probe.close().await;
+                }
                 // Two whirls opening a new SQLite file at once may both try the first
                 // migration (SQLite has no lock for the migrator to take); the one that
                 // loses finds it done when it looks again. PostgreSQL's migrations wait
@@ -578,12 +589,13 @@ enum Bounded<E> {
 
 /// The connections a database is used through: two, so that a history read and a run's
 /// write need not wait for each other, and no more, so that a shop's server with many
-/// bridges keeps connections to spare. Each connection is handed out within the
-/// PostgreSQL bound, and a SQLite connection waits [`SQLITE_BUSY_TIMEOUT`] for a lock.
+/// bridges keeps connections to spare. A connection is handed out within 10 s (a
+/// PostgreSQL call's own bound, [`POSTGRES_TIMEOUT`], is the shorter, and says so), and a
+/// SQLite connection waits [`SQLITE_BUSY_TIMEOUT`] for a lock.
 fn pool_options() -> AnyPoolOptions {
     AnyPoolOptions::new()
         .max_connections(2)
-        .acquire_timeout(POSTGRES_TIMEOUT)
+        .acquire_timeout(Duration::from_secs(10))
         // The Any driver's options carry only what a URL says, and a SQLite URL cannot
         // say how long to wait for a lock: each connection is told here.
         .after_connect(|connection, _| {

@@ -281,7 +281,11 @@ pub enum RecordError {
         error: sqlx::Error,
     },
     /// A PostgreSQL server did not answer in time ([`POSTGRES_TIMEOUT`]).
-    #[error("the run records at {place}: cannot {what}: no answer within {} s", .after.as_secs())]
+    #[error(
+        "the run records at {place}: cannot {what}: no answer within {} s (the server down, or \
+         not answering)",
+        .after.as_secs()
+    )]
     TimedOut {
         /// The database.
         place: String,
@@ -292,10 +296,12 @@ pub enum RecordError {
     },
     /// The shop's database could not be reached, nor the spool that keeps runs meanwhile
     /// be opened.
-    #[error("{why}; nor can the spool that keeps runs meanwhile be used: {error}")]
+    #[error("{why}; nor can the spool {} keep the run meanwhile: {error}", .spool.display())]
     NoSpool {
         /// Why the database could not be reached.
         why: Box<RecordError>,
+        /// The spool.
+        spool: PathBuf,
         /// Why the spool could not be opened.
         error: Box<RecordError>,
     },
@@ -421,6 +427,7 @@ impl Store {
                 if let Err(spool_error) = spool.database().await {
                     return Err(RecordError::NoSpool {
                         why: Box::new(error),
+                        spool: spool.file().to_owned(),
                         error: Box::new(spool_error),
                     });
                 }
@@ -528,7 +535,9 @@ impl Store {
             let written = write.to(&self.database, run.id, &run.uid).await?;
             return Ok((written, Kept::Database));
         };
-        if let Some(id) = spool.find(&run.uid).await? {
+        // A spool that cannot be read (said when the records were opened) holds no part of
+        // this run for this write to go after.
+        if let Some(id) = spool.find(&run.uid).await.ok().flatten() {
             let written = write.to(spool.database().await?, id, &run.uid).await?;
             let why = format!(
                 "an earlier write of run {} went to the spool, and what follows it goes there too",
