@@ -901,7 +901,10 @@ fn found_in_history(
     assert_eq!(stopped[3], "stopped", "{found}");
     // The host each ran on: a shop's database holds every bridge's runs.
     let host = whirl::records::Process::current().host;
-    assert_eq!((&resume[7], &stopped[7]), (&host.as_str().into(), &host.as_str().into()));
+    assert_eq!(
+        (&resume[7], &stopped[7]),
+        (&host.as_str().into(), &host.as_str().into())
+    );
     assert_eq!(stopped[10], line.to_string(), "{found}");
     assert!(resume[8].as_str().unwrap().contains(job), "{found}");
     assert_eq!(
