@@ -59,12 +59,24 @@ impl Serve {
 
     /// `whirl serve` with the jobs in `jobs`, its locks and records in `dir`.
     fn start_with_jobs(dir: tempfile::TempDir, jobs: &Path, args: &[&str]) -> Serve {
+        Serve::start_with_env(dir, jobs, args, &[])
+    }
+
+    /// `whirl serve` as [`Serve::start_with_jobs`], with `env` set beside (and over) what
+    /// that sets.
+    fn start_with_env(
+        dir: tempfile::TempDir,
+        jobs: &Path,
+        args: &[&str],
+        env: &[(&str, &std::ffi::OsStr)],
+    ) -> Serve {
         let mut child = Command::new(env!("CARGO_BIN_EXE_whirl"))
             .args(["serve", "--listen", "127.0.0.1:0", "--jobs"])
             .arg(jobs)
             .args(args)
             .env("WHIRL_LOCK_DIR", dir.path().join("locks"))
             .env("WHIRL_DB", dir.path().join("runs.sqlite"))
+            .envs(env.iter().copied())
             .current_dir(dir.path())
             .stdout(Stdio::piped())
             .stderr(std::fs::File::create(dir.path().join("serve.err")).unwrap())
@@ -416,6 +428,103 @@ fn the_feed_override_needs_the_token_a_run_and_a_value_within_the_cap() {
     );
     assert!(noted.windows(2).all(|w| w[0] <= w[1]), "{run}");
     assert!(noted[8] <= seen_10 && seen_10 < ended, "{run}");
+}
+
+#[test]
+fn a_console_whose_postgresql_is_down_keeps_its_runs_and_their_holds_in_the_spool() {
+    let dir = tempfile::tempdir().unwrap();
+    // The shop's PostgreSQL, down: a loopback port nothing listens on.
+    let port = TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let db = format!("postgres://whirl@127.0.0.1:{port}/shop");
+    let home = dir.path().join("home");
+    let spool = home
+        .join(".local/share/whirl")
+        .join(whirl::records::spool::file_name(&db));
+    let serve = Serve::start_with_env(
+        dir,
+        &repo().join("examples"),
+        &["--token", TOKEN],
+        &[("WHIRL_DB", db.as_ref()), ("HOME", home.as_os_str())],
+    );
+    // It serves, saying where its runs are kept meanwhile.
+    assert!(
+        serve.said().contains(&spool.display().to_string()),
+        "{}",
+        serve.said()
+    );
+    // Its history cannot be read, and says which database.
+    let history = serve.get("/api/history");
+    assert_eq!(history.status, 503, "{}", history.body);
+    assert!(history.body.contains("127.0.0.1"), "{}", history.body);
+    let machine = serve.get("/api/machines").json()[0]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let token = [("X-Whirl-Token", TOKEN)];
+    let view = |serve: &Serve| serve.get("/api/runs").json()[0].clone();
+    // A dry run at half real time, held once it runs, then stopped.
+    let started = serve.post("/api/runs", &token, &run_request(&machine, 0.5));
+    assert_eq!(started.status, 200, "{}", started.body);
+    wait_for(Duration::from_secs(60), "the run to run a line", || {
+        view(&serve)["line"].as_u64().is_some_and(|l| l > 1)
+    });
+    let press = |button: &str| {
+        serve.post(
+            &format!("/api/runs/{}/{button}", machine.replace(' ', "%20")),
+            &token,
+            "{}",
+        )
+    };
+    let held = press("hold");
+    assert_eq!(held.status, 200, "{}", held.body);
+    let stopped = press("stop");
+    assert_eq!(stopped.status, 200, "{}", stopped.body);
+    wait_for(Duration::from_secs(60), "the run to end", || {
+        view(&serve)["phase"] == "ended"
+    });
+    // The page shows no number that is not the shop's, and says where the record is.
+    let ended = view(&serve);
+    assert_eq!(
+        (&ended["record"], &ended["spooled"]),
+        (&serde_json::Value::Null, &serde_json::Value::Bool(true)),
+        "{ended}"
+    );
+    assert!(
+        ended["messages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|m| m.as_str().unwrap().contains(&spool.display().to_string())),
+        "{ended}"
+    );
+    // The spool is a records database of its own: the run in it, its hold and its stop.
+    let spooled = Command::new(env!("CARGO_BIN_EXE_whirl"))
+        .args(["runs", "show", "1", "--json", "--db"])
+        .arg(&spool)
+        .output()
+        .unwrap();
+    assert!(
+        spooled.status.success(),
+        "{}",
+        String::from_utf8_lossy(&spooled.stderr)
+    );
+    let run: serde_json::Value = serde_json::from_slice(&spooled.stdout).unwrap();
+    assert_eq!(
+        (&run["kind"], &run["outcome"]),
+        (&"serve".into(), &"stopped".into())
+    );
+    let kinds: Vec<&str> = run["notes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n["kind"].as_str().unwrap())
+        .collect();
+    assert_eq!(kinds.first(), Some(&"hold"), "{run}");
+    assert_eq!(kinds.last(), Some(&"stop"), "{run}");
 }
 
 fn wait_for(limit: Duration, what: &str, mut done: impl FnMut() -> bool) {
@@ -893,7 +1002,8 @@ fn found_in_history(
         let rows = rows(p);
         (rows.as_array().map_or(0, Vec::len) >= 2).then_some(rows)
     });
-    // Run, kind, sent to, outcome, started, took, machine, job, transport, resume at, why.
+    // Run, kind, sent to, outcome, started, took, machine, host, job, transport, resume
+    // at, why.
     let (resume, stopped) = (&found[0], &found[1]);
     assert_eq!(resume[1], "serve", "{found}");
     // Dry runs: sent to the simulator, not to a machine.
@@ -901,10 +1011,16 @@ fn found_in_history(
     assert_eq!(stopped[2], "simulator (dry run)", "{found}");
     assert_eq!(resume[3], "completed", "{found}");
     assert_eq!(stopped[3], "stopped", "{found}");
-    assert_eq!(stopped[9], line.to_string(), "{found}");
-    assert!(resume[7].as_str().unwrap().contains(job), "{found}");
+    // The host each ran on: a shop's database holds every bridge's runs.
+    let host = whirl::records::Process::current().host;
     assert_eq!(
-        (&resume[8], &stopped[8]),
+        (&resume[7], &stopped[7]),
+        (&host.as_str().into(), &host.as_str().into())
+    );
+    assert_eq!(stopped[10], line.to_string(), "{found}");
+    assert!(resume[8].as_str().unwrap().contains(job), "{found}");
+    assert_eq!(
+        (&resume[9], &stopped[9]),
         (&transport.into(), &transport.into()),
         "{found}"
     );

@@ -1,7 +1,8 @@
 //! The history page's API: every run in the run records ([`crate::records`]), the
-//! command line's and the console's alike, searched by job, machine, date and outcome in
-//! the database (the records' own filter, as `whirl runs list` searches), and one run's
-//! whole record, as `whirl runs show` gives it.
+//! command line's and the console's alike, of every machine and host that records into
+//! them (a shop's PostgreSQL holds every bridge's), searched by job, machine, host, date
+//! and outcome in the database (the records' own filter, as `whirl runs list` searches),
+//! and one run's whole record, as `whirl runs show` gives it.
 
 use super::http::ApiError;
 use super::runner::Console;
@@ -23,6 +24,8 @@ pub struct Search {
     pub job: Option<String>,
     /// The machine's name or profile file contains this (any case).
     pub machine: Option<String>,
+    /// The host it ran on contains this (any case).
+    pub host: Option<String>,
     /// Started at or after this UTC date or time.
     pub since: Option<String>,
     /// Started before this UTC date or time.
@@ -73,6 +76,7 @@ pub fn filter(search: &Search) -> Result<Filter, String> {
         since: time("since", &search.since)?,
         until: time("until", &search.until)?,
         outcome,
+        host: given(&search.host),
         limit: Some(limit),
     })
 }
@@ -128,6 +132,7 @@ mod tests {
             let field = match key {
                 "job" => &mut search.job,
                 "machine" => &mut search.machine,
+                "host" => &mut search.host,
                 "since" => &mut search.since,
                 "until" => &mut search.until,
                 "outcome" => &mut search.outcome,
@@ -143,6 +148,7 @@ mod tests {
         let f = filter(&search(&[
             ("job", "trapezoidal"),
             ("machine", " "),
+            ("host", "Lathe-2"),
             ("since", "2026-05-01"),
             ("until", ""),
             ("outcome", "stopped"),
@@ -150,6 +156,7 @@ mod tests {
         .unwrap();
         assert_eq!(f.job.as_deref(), Some("trapezoidal"));
         assert_eq!(f.machine, None);
+        assert_eq!(f.host.as_deref(), Some("Lathe-2"));
         assert_eq!(f.since, Some(Timestamp::parse("2026-05-01").unwrap()));
         assert_eq!(f.until, None);
         assert_eq!(f.outcome, Some(Outcome::Stopped));

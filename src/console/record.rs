@@ -13,7 +13,7 @@ use crate::log::Record;
 use crate::records::from_log::LogFacts;
 use crate::records::{
     Ending, FileSnapshot, Kind, NewRun, Note, NoteKind, Outcome, Place, ProgramId, RecordError,
-    RunId, RunProvenance, Store, Timestamp,
+    Recorded, RunProvenance, Store, Timestamp,
 };
 use crate::transport::Posted;
 
@@ -66,11 +66,15 @@ pub fn new_run(start: Start<'_>) -> NewRun {
     run
 }
 
-/// Opens the records at `place` on the caller's runtime and the run's record in them.
-pub async fn begin(place: &Place, run: &NewRun) -> Result<(Store, RunId), RecordError> {
+/// Opens the records at `place` on the caller's runtime (which uploads what their spool
+/// keeps, if the shop's database answers) and the run's record in them.
+pub async fn begin(place: &Place, run: &NewRun) -> Result<(Store, Recorded), RecordError> {
     let store = Store::open(place).await?;
-    let id = store.begin(run).await?;
-    Ok((store, id))
+    if let Some(Err(e)) = store.uploaded() {
+        tracing::warn!(error = %e, "the runs kept in the spool stay there until the next upload");
+    }
+    let recorded = store.begin(run).await?;
+    Ok((store, recorded))
 }
 
 /// A hold or a resume pressed at `line` by `client` (its address and session, as

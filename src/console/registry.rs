@@ -85,8 +85,14 @@ pub struct RunView {
     pub measured: Option<Measured>,
     /// Executed moves logged so far (the groove picture changes when this does).
     pub executed: usize,
-    /// The run's number in the run records, if it is recorded.
+    /// The run's number in the run records, if it is recorded there (a record kept in the
+    /// spool has its number when uploaded).
     pub record: Option<i64>,
+    /// Its record is kept in the spool: the shop's database could not be reached.
+    pub spooled: bool,
+    /// Its record, for the notes the console's buttons add to it.
+    #[serde(skip)]
+    pub recorded: Option<crate::records::Recorded>,
     /// The feed override: what may be asked, what was, and what the controller runs at;
     /// `None` for a run that takes none.
     pub feed: Option<FeedView>,
@@ -211,6 +217,8 @@ impl RunView {
             measured: None,
             executed: 0,
             record: None,
+            spooled: false,
+            recorded: None,
             feed: None,
             around: Vec::new(),
             ring_rpm: None,

@@ -22,7 +22,8 @@ use crate::judge::svg::Plot;
 use crate::log::{Event, ExecLog, FeedOverrideState, Record};
 use crate::plan::overrides::FeedCap;
 use crate::records::{
-    Ending, FileSnapshot, NoteKind, Outcome, ProgramId, RunId, RunProvenance, Store, Timestamp,
+    Ending, FileSnapshot, Finished, Kept, NoteKind, Outcome, ProgramId, Recorded, RunProvenance,
+    Store, Timestamp,
 };
 use crate::telemetry::{self, RunContext};
 use crate::transport::control::override_range;
@@ -469,7 +470,22 @@ impl Console {
             }
             None => None,
         };
-        view.record = recorded.as_ref().map(|(_, id)| *id);
+        if let Some((_, recorded)) = &recorded {
+            // A record kept in the spool is numbered by the shop's database when uploaded:
+            // the page shows no number that is not its number there.
+            match &recorded.kept {
+                Kept::Database => view.record = Some(recorded.id),
+                Kept::Spool { file, why } => {
+                    view.spooled = true;
+                    view.message(format!(
+                        "its record is kept in the spool {} ({why}), and uploaded to the run \
+                         records when they answer",
+                        file.display()
+                    ));
+                }
+            }
+            view.recorded = Some(recorded.clone());
+        }
         let erased: Inputs = inputs.clone();
         let id = match self.registry.begin(view, control, cut, erased) {
             Ok(id) => id,
@@ -477,8 +493,8 @@ impl Console {
                 if let Some((store, record)) = &recorded {
                     let mut ending = Ending::new(Outcome::Failed);
                     ending.reason = Some(format!("not started: {busy}"));
-                    if let Err(e) = runtime.block_on(store.finish(*record, &ending)) {
-                        tracing::error!(record, error = %e, "the run's record could not be closed");
+                    if let Err(e) = runtime.block_on(store.finish(record, &ending)) {
+                        tracing::error!(record = record.id, error = %e, "the run's record could not be closed");
                     }
                 }
                 return Err(busy.into());
@@ -494,8 +510,8 @@ impl Console {
             let runtime = Arc::clone(&runtime);
             move |machine: &str, id: u64, why: String| {
                 if let Some((store, record)) = &record {
-                    if let Err(e) = runtime.block_on(store.finish(*record, &failed(&why))) {
-                        tracing::error!(record, error = %e, "the run's record could not be closed");
+                    if let Err(e) = runtime.block_on(store.finish(record, &failed(&why))) {
+                        tracing::error!(record = record.id, error = %e, "the run's record could not be closed");
                     }
                 }
                 console
@@ -542,7 +558,7 @@ impl Console {
         self: &Arc<Console>,
         run: Run<'_>,
         runtime: &tokio::runtime::Runtime,
-        recorded: Option<(Store, RunId)>,
+        recorded: Option<(Store, Recorded)>,
         commands: Commands,
     ) {
         let Run {
@@ -558,7 +574,7 @@ impl Console {
             Some(telemetry) => {
                 telemetry.prepare(RunContext {
                     kind: "serve".into(),
-                    record: recorded.as_ref().map(|(_, record)| *record),
+                    record: recorded.as_ref().map(|(_, recorded)| recorded.id),
                     job: Some(inputs.job_name.clone()),
                     program_sha256: Some(
                         ProgramId::of(inputs.posted.name.clone(), &inputs.posted.lines.join("\n"))
@@ -675,11 +691,22 @@ impl Console {
         );
         // Closed before the page hears the run ended, so that its history shows it so.
         let unclosed = recorded.and_then(|(store, record)| {
-            let closed = runtime.block_on(store.finish(record, &ending));
+            let closed = runtime.block_on(store.finish(&record, &ending));
             runtime.block_on(store.close_connections());
-            closed.err().map(|e| {
-                format!("the run's record {record} could not be closed ({e}); the next whirl serve closes it as interrupted")
-            })
+            match closed {
+                Ok(Finished { kept: Kept::Spool { file, why }, .. }) if record.kept == Kept::Database => {
+                    Some(format!(
+                        "the run's record {} could not be closed in the run records ({why}): its end is kept in the spool {}, and uploaded when they answer",
+                        record.id,
+                        file.display()
+                    ))
+                }
+                Ok(_) => None,
+                Err(e) => Some(format!(
+                    "the run's record {} could not be closed ({e}); the next whirl serve closes it as interrupted",
+                    record.id
+                )),
+            }
         });
         let completed = ending.outcome == Outcome::Completed;
         self.registry.end(machine, id, |v| {
@@ -723,13 +750,14 @@ impl Console {
         else {
             return Ok(());
         };
-        let Some(id) = view.record else {
+        let Some(recorded) = &view.recorded else {
             return Ok(());
         };
         records
             .store
-            .note(id, &record::pressed(kind, view.line, client))
+            .note(recorded, &record::pressed(kind, view.line, client))
             .await
+            .map(|_| ())
             .map_err(|e| e.to_string())
     }
 }

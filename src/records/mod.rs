@@ -10,8 +10,13 @@
 //! closed (killed outright) is closed on the next opening of the database, from what its
 //! log says ([`Store::close_orphans`], [`process`], [`from_log`]).
 //!
-//! - [`store`]: the database, SQLite (one file, the default) or PostgreSQL (a shop's
-//!   server) through the same code and the same SQL, migrations embedded in the binary.
+//! - [`store`]: the records a run uses: SQLite (one file, the default) or PostgreSQL (a
+//!   shop's server, written by many bridges at once), and PostgreSQL's spool.
+//! - [`database`]: one database through the same code and the same SQL for both,
+//!   migrations embedded in the binary.
+//! - [`spool`]: the runs a shop's PostgreSQL could not take, kept on the host and uploaded
+//!   once it answers.
+//! - [`uid`]: a run's key, the same in every database it is written to.
 //! - [`process`]: whose a running record is and whether that process still runs.
 //! - [`from_log`]: what a run's log says of it.
 //! - [`ending`]: how a run ended, from a stream's outcome, a dry run's report, its log.
@@ -21,11 +26,14 @@
 //! serves pages; the command line drives them from a runtime of its own. `docs/records.md`
 //! has the schema, the default place and the interruption rule.
 
+pub mod database;
 pub mod ending;
 pub mod from_log;
 pub mod process;
+pub mod spool;
 pub mod store;
 pub mod time;
+pub mod uid;
 
 use std::path::PathBuf;
 
@@ -36,10 +44,12 @@ use sha2::{Digest, Sha256};
 pub use crate::config::provenance::sha256_hex;
 use crate::config::provenance::{hex, Provenance};
 pub use process::Process;
-pub use store::{Place, RecordError, Store};
+pub use spool::Uploaded;
+pub use store::{Finished, Kept, Place, RecordError, Recorded, Store};
 pub use time::Timestamp;
+pub use uid::Uid;
 
-/// A record's number, from 1.
+/// A record's number in its database, from 1.
 pub type RunId = i64;
 
 /// What kind of run a record is of.
@@ -394,6 +404,8 @@ pub struct Filter {
     pub until: Option<Timestamp>,
     /// Ended so (or still running).
     pub outcome: Option<Outcome>,
+    /// Ran on a host whose name contains this (any case).
+    pub host: Option<String>,
     /// At most this many, the newest.
     pub limit: Option<u32>,
 }
@@ -453,6 +465,8 @@ pub struct RunSummary {
     pub started_at: String,
     /// See `started_at`.
     pub ended_at: Option<String>,
+    /// The host it ran on (a shop's database holds every bridge's runs).
+    pub host: String,
     /// The job file.
     pub job: Option<String>,
     /// The program.
@@ -477,8 +491,8 @@ pub struct Run {
     /// What a list shows of it.
     #[serde(flatten)]
     pub summary: RunSummary,
-    /// The host it ran on.
-    pub host: String,
+    /// Its key in every database; `None` for a record made before keys were.
+    pub uid: Option<Uid>,
     /// The process that ran it.
     pub pid: u32,
     /// The job file as it was.

@@ -1,29 +1,30 @@
-//! The database of run records: SQLite (one file, no server, created on first use) or
-//! PostgreSQL (a shop's server, given as a `postgres://` URL), through sqlx's `Any` driver,
-//! so both run the same code and the same SQL. The schema is versioned migrations
-//! embedded in the binary (`src/records/migrations/`), brought up to date each time the
-//! database is opened: a database a newer whirl has migrated further is refused, not
-//! written in a form it does not know.
+//! The run records a run uses: the database named (SQLite, one file, no server, created on
+//! first use; or PostgreSQL, a shop's server, given as a `postgres://` URL), and for
+//! PostgreSQL the spool ([`super::spool`]), a SQLite file of the host's that keeps what the
+//! server cannot take. Records never delay or stop a cut: a run whose PostgreSQL cannot be
+//! reached when it begins, or that goes away mid-run, is kept in the spool, and the next
+//! opening of the records that reaches the server uploads it, once.
+//!
+//! Many bridges write to one PostgreSQL at once: run numbers come from a counter row each
+//! takes in turn ([`super::database`]), and every run has a key of its own ([`Uid`]) that
+//! an upload is keyed by.
 
-use std::borrow::Cow;
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
+use std::sync::Arc;
 use std::time::Duration;
 
-use sqlx::any::{AnyConnectOptions, AnyPoolOptions, AnyRow};
-use sqlx::migrate::{MigrateError, Migration, MigrationType, Migrator};
+use sqlx::migrate::MigrateError;
 use sqlx::sqlite::SqliteConnectOptions;
-use sqlx::{AnyPool, ConnectOptions, Executor as _, Row, SqlSafeStr};
 
-use super::from_log::{read_run, LogFacts};
-use super::process::{Liveness, Process};
+use super::database::{Database, ID_TRIES};
+pub use super::database::{POSTGRES_TIMEOUT, SQLITE_BUSY_TIMEOUT};
+use super::process::Process;
+use super::spool::{self, Spool, Uploaded};
 use super::time::Timestamp;
-use super::{
-    Ending, FileSnapshot, Filter, Kind, LogPlace, Measured, NewRun, Note, NoteKind, Outcome,
-    ProgramId, Run, RunId, RunMode, RunProvenance, RunSummary,
-};
-use crate::log::Ended;
+use super::uid::Uid;
+use super::{Ending, Filter, NewRun, Note, Outcome, Run, RunId, RunSummary};
 
 /// Where the records are kept.
 #[derive(Debug, Clone)]
@@ -35,8 +36,14 @@ pub enum Place {
         /// Whether to create it.
         create: bool,
     },
-    /// A PostgreSQL database, by its URL.
-    Postgres(String),
+    /// A PostgreSQL database.
+    Postgres {
+        /// Its URL.
+        url: String,
+        /// The SQLite file that keeps runs while the database cannot be reached; `None`:
+        /// none, and a run whose database cannot be reached is not recorded.
+        spool: Option<PathBuf>,
+    },
 }
 
 /// The environment variable that names the database when `--db` does not.
@@ -45,10 +52,14 @@ pub const ENV: &str = "WHIRL_DB";
 impl Place {
     /// A database as the user names it: a `postgres://` (or `postgresql://`) URL, a
     /// `sqlite:` URL (`sqlite://runs.sqlite?mode=ro`), or a plain path to a SQLite file.
-    /// A SQLite file is created if missing, unless the URL gives its `mode`.
+    /// A SQLite file is created if missing, unless the URL gives its `mode`. A PostgreSQL
+    /// database has no spool until [`Place::with_spool_in`] gives it one.
     pub fn parse(text: &str) -> Result<Place, RecordError> {
         if text.starts_with("postgres://") || text.starts_with("postgresql://") {
-            return Ok(Place::Postgres(text.to_owned()));
+            return Ok(Place::Postgres {
+                url: text.to_owned(),
+                spool: None,
+            });
         }
         if text.starts_with("sqlite:") {
             if text.starts_with("sqlite::memory:") || text.contains("mode=memory") {
@@ -93,18 +104,21 @@ impl Place {
     }
 
     /// The database to use: `given` (`--db`) if any, else the `WHIRL_DB` environment
-    /// variable, else [`Place::default_in`] the user's data folder.
+    /// variable, else [`Place::default_in`] the user's data folder. A PostgreSQL database
+    /// is given its spool in the user's data folder, if there is one.
     pub fn resolve(given: Option<&str>) -> Result<Place, RecordError> {
-        if let Some(given) = given {
-            return Place::parse(given);
-        }
-        match std::env::var_os(ENV) {
-            Some(value) if !value.is_empty() => Place::parse(&value.to_string_lossy()),
-            _ => Place::default_in(
-                std::env::var_os("XDG_DATA_HOME").as_deref(),
-                std::env::var_os("HOME").as_deref(),
-            ),
-        }
+        let (xdg, home) = (std::env::var_os("XDG_DATA_HOME"), std::env::var_os("HOME"));
+        let place = match given {
+            Some(given) => Place::parse(given)?,
+            None => match std::env::var_os(ENV) {
+                Some(value) if !value.is_empty() => Place::parse(&value.to_string_lossy())?,
+                _ => return Place::default_in(xdg.as_deref(), home.as_deref()),
+            },
+        };
+        Ok(match data_folder(xdg.as_deref(), home.as_deref()) {
+            Ok(data) => place.with_spool_in(&data),
+            Err(_) => place,
+        })
     }
 
     /// The default: `runs.sqlite` in the user's data folder, `$XDG_DATA_HOME/whirl/` (an
@@ -114,17 +128,30 @@ impl Place {
         xdg_data_home: Option<&OsStr>,
         home: Option<&OsStr>,
     ) -> Result<Place, RecordError> {
-        let data = match (xdg_data_home.map(Path::new), home.map(Path::new)) {
-            (Some(xdg), _) if xdg.is_absolute() => xdg.to_owned(),
-            (_, Some(home)) if home.is_absolute() => home.join(".local/share"),
-            _ => {
-                return Err(RecordError::Place(format!(
-                    "no home folder (HOME) to keep the run records in: name a database with \
-                     --db or {ENV}"
-                )))
-            }
-        };
+        let data = data_folder(xdg_data_home, home)?;
         Ok(Place::sqlite_file(&data.join("whirl").join("runs.sqlite")))
+    }
+
+    /// The same place; a PostgreSQL database with its spool in `whirl/` of the data
+    /// folder `data`, beside the default SQLite file: one spool a database
+    /// ([`spool::file_name`]), so that a run is uploaded only to the database it was
+    /// meant for.
+    pub fn with_spool_in(self, data: &Path) -> Place {
+        match self {
+            Place::Postgres { url, .. } => Place::Postgres {
+                spool: Some(data.join("whirl").join(spool::file_name(&url))),
+                url,
+            },
+            sqlite => sqlite,
+        }
+    }
+
+    /// The spool of a PostgreSQL database, if it has one.
+    pub fn spool(&self) -> Option<&Path> {
+        match self {
+            Place::Postgres { spool, .. } => spool.as_deref(),
+            Place::Sqlite { .. } => None,
+        }
     }
 
     /// The SQLite file the records are kept in; `None` for PostgreSQL, which is no file of
@@ -133,7 +160,7 @@ impl Place {
     pub fn file(&self) -> Option<&Path> {
         match self {
             Place::Sqlite { options, .. } => Some(options.get_filename()),
-            Place::Postgres(_) => None,
+            Place::Postgres { .. } => None,
         }
     }
 
@@ -142,7 +169,7 @@ impl Place {
     pub fn name(&self) -> String {
         match self {
             Place::Sqlite { options, .. } => options.get_filename().display().to_string(),
-            Place::Postgres(url) => without_password(url),
+            Place::Postgres { url, .. } => without_password(url),
         }
     }
 }
@@ -167,6 +194,22 @@ fn without_password(url: &str) -> String {
             None => url.to_owned(),
         },
         None => url.to_owned(),
+    }
+}
+
+/// The user's data folder: `$XDG_DATA_HOME` (an absolute one; a relative one is to be
+/// ignored, by the XDG base directory rules), else `$HOME/.local/share`.
+fn data_folder(
+    xdg_data_home: Option<&OsStr>,
+    home: Option<&OsStr>,
+) -> Result<PathBuf, RecordError> {
+    match (xdg_data_home.map(Path::new), home.map(Path::new)) {
+        (Some(xdg), _) if xdg.is_absolute() => Ok(xdg.to_owned()),
+        (_, Some(home)) if home.is_absolute() => Ok(home.join(".local/share")),
+        _ => Err(RecordError::Place(format!(
+            "no home folder (HOME) to keep the run records in: name a database with --db or \
+             {ENV}"
+        ))),
     }
 }
 
@@ -200,8 +243,8 @@ pub enum RecordError {
         /// Why.
         error: MigrateError,
     },
-    /// Other writers took every number tried for a new row (PostgreSQL; SQLite writes one
-    /// at a time).
+    /// Other writers took every number tried for a run's new note (PostgreSQL; SQLite
+    /// writes one at a time).
     #[error("the run records at {place}: cannot {what}: other writers took each of the {ID_TRIES} numbers tried")]
     Contended {
         /// The database.
@@ -237,702 +280,341 @@ pub enum RecordError {
         /// Why.
         error: sqlx::Error,
     },
+    /// A PostgreSQL server did not answer in time ([`POSTGRES_TIMEOUT`]).
+    #[error(
+        "the run records at {place}: cannot {what}: no answer within {} s (the server down, or \
+         not answering)",
+        .after.as_secs()
+    )]
+    TimedOut {
+        /// The database.
+        place: String,
+        /// What the store was doing.
+        what: &'static str,
+        /// How long it waited.
+        after: Duration,
+    },
+    /// The shop's database could not be reached, nor the spool that keeps runs meanwhile
+    /// be opened.
+    #[error("{why}; nor can the spool {} keep the run meanwhile: {error}", .spool.display())]
+    NoSpool {
+        /// Why the database could not be reached.
+        why: Box<RecordError>,
+        /// The spool.
+        spool: PathBuf,
+        /// Why the spool could not be opened.
+        error: Box<RecordError>,
+    },
+    /// The operating system gave no random bits for a run's key.
+    #[error("cannot make a key for the run's record: {0}")]
+    Key(getrandom::Error),
 }
 
-/// SQLite's `PRAGMA quick_check`: the file's pages and their b-trees are whole (the
-/// indexes' agreement with their tables, which only the full integrity check compares, is
-/// left out: it costs a sort of every index). A page damaged in the middle of the file
-/// opens without complaint and fails only when a query reaches it: checked here, at open,
-/// before the run it would record starts.
-async fn quick_check(pool: &AnyPool, place: &str, path: &Path) -> Result<(), RecordError> {
-    let damaged = |problem: String| RecordError::Damaged {
-        place: place.to_owned(),
-        path: path.to_owned(),
-        problem,
-    };
-    let rows = match sqlx::query("PRAGMA quick_check").fetch_all(pool).await {
-        Ok(rows) => rows,
-        // SQLite's own word for a file that is not a database at all is left to the opening
-        // error it has always been; anything the check itself trips over is damage.
-        Err(sqlx::Error::Database(error)) if error.message().contains("not a database") => {
-            return Err(RecordError::Open {
-                place: place.to_owned(),
-                error: sqlx::Error::Database(error),
-            })
-        }
-        Err(error) => return Err(damaged(error.to_string())),
-    };
-    let found: Vec<String> = rows
-        .iter()
-        .filter_map(|row| row.try_get::<String, _>(0).ok())
-        .collect();
-    match found.first() {
-        Some(first) if first == "ok" => Ok(()),
-        Some(first) => Err(damaged(first.clone())),
-        None => Err(damaged("no answer".into())),
+impl RecordError {
+    /// Whether the database could not be reached (down, or not answering), as opposed to
+    /// refusing what it was asked: a run whose records cannot be reached is kept in the
+    /// spool.
+    fn unreachable(&self) -> bool {
+        matches!(
+            self,
+            RecordError::Open { .. } | RecordError::TimedOut { .. }
+        )
     }
 }
 
-/// The records' schema, version by version.
-fn migrator() -> Migrator {
-    Migrator::with_migrations(vec![
-        Migration::new(
-            1,
-            Cow::Borrowed("runs"),
-            MigrationType::Simple,
-            include_str!("migrations/0001_runs.sql").into_sql_str(),
-            false,
-        ),
-        Migration::new(
-            2,
-            Cow::Borrowed("provenance"),
-            MigrationType::Simple,
-            include_str!("migrations/0002_provenance.sql").into_sql_str(),
-            false,
-        ),
-    ])
+/// Where a write to a run's record went.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Kept {
+    /// Into the database named.
+    Database,
+    /// Into the spool `file`, since the database named could not take it (`why`); the
+    /// next opening of the records that reaches the database uploads it.
+    Spool {
+        /// The spool.
+        file: PathBuf,
+        /// Why the database could not take it.
+        why: String,
+    },
 }
 
-/// How many times a new id is tried when another writer took the one chosen.
-const ID_TRIES: usize = 20;
+/// A run's record, as the process that runs it holds it from [`Store::begin`] to
+/// [`Store::finish`]. Cheap to clone.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recorded {
+    /// Its number where it was opened: the database's, or the spool's (an upload gives it
+    /// the database's next).
+    pub id: RunId,
+    /// Its key in every database.
+    pub uid: Uid,
+    /// Where it was opened.
+    pub kept: Kept,
+    /// The run as it began, to continue its record in the spool if the database goes away
+    /// mid-run.
+    pub(super) begun: Arc<Begun>,
+}
 
-/// How long a SQLite connection waits for another writer (another whirl on the host, a
-/// console) to let go of the file before its write fails: a run must not be refused, nor
-/// its record left open, because another run was writing its own a moment earlier.
-/// PostgreSQL writers wait for each other's row locks without one.
-pub const SQLITE_BUSY_TIMEOUT: Duration = Duration::from_secs(30);
+/// What a run's record began with.
+#[derive(Debug, PartialEq)]
+pub(super) struct Begun {
+    pub(super) run: NewRun,
+    pub(super) started: String,
+}
 
-/// An open database of run records.
+/// How a record's closing went.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Finished {
+    /// `false` if the record was not running (closed already, by its process or as
+    /// interrupted).
+    pub closed: bool,
+    /// Where the ending went.
+    pub kept: Kept,
+}
+
+/// A write to a run's record, in whichever database it goes to.
+enum Write<'a> {
+    /// A note, with its key.
+    Note(&'a Uid, &'a Note),
+    /// The ending, at its time.
+    Close(&'a Ending, &'a str),
+}
+
+impl Write<'_> {
+    async fn to(&self, database: &Database, id: RunId, uid: &Uid) -> Result<bool, RecordError> {
+        match self {
+            Write::Note(key, note) => database.note(id, key, note).await.map(|()| true),
+            Write::Close(ending, ended) => database.close(id, Some(uid), ending, ended).await,
+        }
+    }
+}
+
+/// The run records, opened.
 #[derive(Debug, Clone)]
 pub struct Store {
-    pool: AnyPool,
-    place: String,
+    /// The database named.
+    database: Database,
+    /// A PostgreSQL database's spool.
+    spool: Option<Spool>,
+    /// Why the database could not be reached when the records were opened: the runs begun
+    /// through this opening go to the spool straight away, rather than wait on it again.
+    down: Option<String>,
+    /// What the opening's upload of the spool did, if it found runs to upload.
+    uploaded: Option<Arc<Result<Uploaded, RecordError>>>,
 }
 
 impl Store {
     /// Opens the records at `place`, creating a SQLite file (and its folder) on first use,
-    /// and brings the schema up to date.
+    /// and brings the schema up to date. A PostgreSQL database that cannot be reached is
+    /// no error where it has a spool: the runs begun meanwhile are kept there. One that
+    /// can be reached is sent what its spool keeps ([`Store::uploaded`] says how that
+    /// went; it never fails the opening).
     pub async fn open(place: &Place) -> Result<Store, RecordError> {
         sqlx::any::install_default_drivers();
-        let name = place.name();
-        let url = match place {
+        let (url, spool) = match place {
             Place::Sqlite { options, create } => {
-                let parent = options.get_filename().parent();
-                if let Some(folder) = parent.filter(|p| !p.as_os_str().is_empty()) {
-                    if *create && !folder.exists() {
-                        std::fs::create_dir_all(folder).map_err(|error| RecordError::Folder {
-                            path: folder.to_owned(),
-                            error,
-                        })?;
-                    }
-                }
-                options.to_url_lossy().to_string()
-            }
-            Place::Postgres(url) => url.clone(),
-        };
-        let open = |error| RecordError::Open {
-            place: name.clone(),
-            error,
-        };
-        let options = AnyConnectOptions::from_str(&url)
-            .map_err(open)?
-            .disable_statement_logging();
-        let pool = AnyPoolOptions::new()
-            .max_connections(2)
-            .acquire_timeout(Duration::from_secs(10))
-            // The Any driver's options carry only what a URL says, and a SQLite URL cannot
-            // say how long to wait for a lock: each connection is told here.
-            .after_connect(|connection, _| {
-                Box::pin(async move {
-                    if connection.backend_name() == "SQLite" {
-                        let pragma =
-                            format!("PRAGMA busy_timeout = {}", SQLITE_BUSY_TIMEOUT.as_millis());
-                        connection.execute(sqlx::AssertSqlSafe(pragma)).await?;
-                    }
-                    Ok(())
+                return Ok(Store {
+                    database: Database::sqlite(options, *create, place.name()).await?,
+                    spool: None,
+                    down: None,
+                    uploaded: None,
                 })
-            })
-            .connect_with(options)
-            .await
-            .map_err(open)?;
-        if let Place::Sqlite { options, .. } = place {
-            quick_check(&pool, &name, options.get_filename()).await?;
+            }
+            Place::Postgres { url, spool } => (url, spool.clone().map(Spool::new)),
+        };
+        let database = Database::postgres(url, place.name())?;
+        let down = match (database.ready().await, &spool) {
+            (Ok(()), _) => None,
+            (Err(error), Some(spool)) if error.unreachable() => {
+                if let Err(spool_error) = spool.database().await {
+                    return Err(RecordError::NoSpool {
+                        why: Box::new(error),
+                        spool: spool.file().to_owned(),
+                        error: Box::new(spool_error),
+                    });
+                }
+                Some(error.to_string())
+            }
+            (Err(error), _) => return Err(error),
+        };
+        let mut store = Store {
+            database,
+            spool,
+            down,
+            uploaded: None,
+        };
+        if store.down.is_none() && store.spool.as_ref().is_some_and(Spool::exists) {
+            store.uploaded = Some(Arc::new(store.upload().await));
         }
-        // Two whirls opening a new SQLite file at once may both try the first migration
-        // (SQLite has no lock for the migrator to take); the one that loses finds it done
-        // when it looks again.
-        let migrator = migrator();
-        if migrator.run(&pool).await.is_err() {
-            migrator
-                .run(&pool)
-                .await
-                .map_err(|error| RecordError::Migrate {
-                    place: name.clone(),
-                    error,
-                })?;
-        }
-        Ok(Store { pool, place: name })
+        Ok(store)
     }
 
     /// The database, as messages name it.
     pub fn place(&self) -> &str {
-        &self.place
+        self.database.place()
     }
 
-    fn error(&self, what: &'static str) -> impl Fn(sqlx::Error) -> RecordError + '_ {
-        move |error| RecordError::Query {
-            place: self.place.clone(),
-            what,
-            error,
-        }
+    /// The spool, for a PostgreSQL database that has one.
+    pub fn spool(&self) -> Option<&Path> {
+        self.spool.as_ref().map(Spool::file)
     }
 
-    fn contended(&self, what: &'static str) -> RecordError {
-        RecordError::Contended {
-            place: self.place.clone(),
-            what,
-        }
+    /// Why the database could not be reached when the records were opened, if it could
+    /// not (the runs begun through this opening are kept in the spool).
+    pub fn down(&self) -> Option<&str> {
+        self.down.as_deref()
+    }
+
+    /// What the opening's upload of the spool did: `None` if there was nothing to upload
+    /// or the database could not be reached.
+    pub fn uploaded(&self) -> Option<&Result<Uploaded, RecordError>> {
+        self.uploaded.as_deref()
     }
 
     /// Opens a record, `running`, for a run about to start; a run that resumes an earlier
-    /// one ([`NewRun::resume_from`]) is linked to it.
-    pub async fn begin(&self, run: &NewRun) -> Result<RunId, RecordError> {
-        let resumes = match (&run.program, run.resume_from) {
-            (Some(program), Some(line)) => self.resumed_run(&program.sha256, line).await?,
-            _ => None,
-        };
+    /// one ([`NewRun::resume_from`]) is linked to it. In the spool if the database cannot
+    /// take it and there is a spool ([`Recorded::kept`] says which).
+    pub async fn begin(&self, run: &NewRun) -> Result<Recorded, RecordError> {
+        let uid = Uid::random().map_err(RecordError::Key)?;
         let started = Timestamp::now().to_text();
-        let file = |f: &Option<FileSnapshot>, part: fn(&FileSnapshot) -> &String| {
-            f.as_ref().map(|f| part(f).clone())
-        };
-        for _ in 0..ID_TRIES {
-            let inserted = sqlx::query(
-                "INSERT INTO runs (id, kind, outcome, started_at, host, pid, process_started, \
-                 boot_id, job_path, job_sha256, job_text, machine_name, machine_path, \
-                 machine_sha256, machine_text, program_name, program_sha256, program_lines, \
-                 transport, port, plan_report, resume_from, resumes, log_path, log_offset, \
-                 provenance) \
-                 SELECT COALESCE(MAX(id), 0) + 1, $1, 'running', $2, $3, $4, $5, $6, $7, $8, \
-                 $9, $10, $11, $12, $13, $14, $15, $16, $17, $18, $19, $20, $21, $22, $23, \
-                 $24 FROM runs RETURNING id",
-            )
-            .bind(run.kind.as_str())
-            .bind(&started)
-            .bind(&run.process.host)
-            .bind(i64::from(run.process.pid))
-            .bind(run.process.started.map(saturating))
-            .bind(run.process.boot.clone())
-            .bind(file(&run.job, |f| &f.path))
-            .bind(file(&run.job, |f| &f.sha256))
-            .bind(file(&run.job, |f| &f.text))
-            .bind(run.machine_name.clone())
-            .bind(file(&run.machine, |f| &f.path))
-            .bind(file(&run.machine, |f| &f.sha256))
-            .bind(file(&run.machine, |f| &f.text))
-            .bind(run.program.as_ref().map(|p| p.name.clone()))
-            .bind(run.program.as_ref().map(|p| p.sha256.clone()))
-            .bind(run.program.as_ref().map(|p| line(p.lines)))
-            .bind(run.transport.clone())
-            .bind(run.port.clone())
-            .bind(run.plan_report.clone())
-            .bind(run.resume_from.map(line))
-            .bind(resumes)
-            .bind(
-                run.log
-                    .as_ref()
-                    .map(|l| l.path.to_string_lossy().into_owned()),
-            )
-            .bind(run.log.as_ref().map(|l| saturating(l.offset)))
-            .bind(run.provenance.as_ref().map(RunProvenance::to_json))
-            .fetch_one(&self.pool)
-            .await;
-            match inserted {
-                Ok(row) => return row.try_get("id").map_err(self.error("open a record")),
-                Err(e) if taken(&e) => continue,
-                Err(e) => return Err(self.error("open a record")(e)),
-            }
-        }
-        Err(self.contended("open a record"))
-    }
-
-    /// The run a run of the program `sha256` starting at `line` resumes: the latest that
-    /// did not complete, the one whose resume point is `line` if any is.
-    async fn resumed_run(&self, sha256: &str, line: usize) -> Result<Option<RunId>, RecordError> {
-        sqlx::query(
-            "SELECT id FROM runs WHERE program_sha256 = $1 \
-             AND outcome IN ('stopped', 'failed', 'interrupted') \
-             ORDER BY CASE WHEN resume_at = $2 THEN 0 ELSE 1 END, id DESC LIMIT 1",
-        )
-        .bind(sha256)
-        .bind(self::line(line))
-        .fetch_optional(&self.pool)
-        .await
-        .map_err(self.error("find the run this one resumes"))?
-        .map(|row| row.try_get("id"))
-        .transpose()
-        .map_err(self.error("find the run this one resumes"))
-    }
-
-    /// Adds a note to a run as it goes (an alarm, a hold, a resume).
-    pub async fn note(&self, id: RunId, note: &Note) -> Result<(), RecordError> {
-        for _ in 0..ID_TRIES {
-            let at = Timestamp::now().to_text();
-            let written = sqlx::query(
-                "INSERT INTO run_notes (run_id, seq, at, kind, line, code, text) \
-                 SELECT $1, COALESCE(MAX(seq), 0) + 1, $2, $3, $4, $5, $6 \
-                 FROM run_notes WHERE run_id = $1",
-            )
-            .bind(id)
-            .bind(note.at.clone().unwrap_or(at))
-            .bind(note.kind.as_str())
-            .bind(note.line.map(line))
-            .bind(note.code.map(i64::from))
-            .bind(&note.text)
-            .execute(&self.pool)
-            .await;
-            match written {
-                Ok(_) => return Ok(()),
-                Err(e) if taken(&e) => continue,
-                Err(e) => return Err(self.error("add a note to a run")(e)),
-            }
-        }
-        Err(self.contended("add a note to a run"))
-    }
-
-    /// Closes a running record with how its run ended. `false` if it was not running (it
-    /// was closed already, by its process or as interrupted).
-    pub async fn finish(&self, id: RunId, ending: &Ending) -> Result<bool, RecordError> {
-        let ended = Timestamp::now().to_text();
-        self.close(id, ending, &ended).await
-    }
-
-    async fn close(&self, id: RunId, ending: &Ending, ended: &str) -> Result<bool, RecordError> {
-        let what = "close a record";
-        // Its notes are numbered after the last one written: a note written at the same
-        // moment (a hold pressed on the console) takes the number, and the close tries again.
-        for _ in 0..ID_TRIES {
-            match self.close_once(id, ending, ended).await {
-                Err(e) if taken(&e) => continue,
-                closed => return closed.map_err(self.error(what)),
-            }
-        }
-        Err(self.contended(what))
-    }
-
-    async fn close_once(&self, id: RunId, ending: &Ending, ended: &str) -> sqlx::Result<bool> {
-        let mut tx = self.pool.begin().await?;
-        let updated = sqlx::query(
-            "UPDATE runs SET outcome = $2, reason = $3, ended_at = $4, \
-             program_name = COALESCE($5, program_name), \
-             program_sha256 = COALESCE($6, program_sha256), \
-             program_lines = COALESCE($7, program_lines), \
-             plan_report = COALESCE($8, plan_report), \
-             resume_at = $9, possibly_run_to = $10, last_line = $11, \
-             provenance = COALESCE($12, provenance) \
-             WHERE id = $1 AND outcome = 'running'",
-        )
-        .bind(id)
-        .bind(ending.outcome.as_str())
-        .bind(ending.reason.clone())
-        .bind(ended)
-        .bind(ending.program.as_ref().map(|p| p.name.clone()))
-        .bind(ending.program.as_ref().map(|p| p.sha256.clone()))
-        .bind(ending.program.as_ref().map(|p| line(p.lines)))
-        .bind(ending.plan_report.clone())
-        .bind(ending.resume_at.map(line))
-        .bind(ending.possibly_run_to.map(line))
-        .bind(ending.last_line.map(line))
-        .bind(ending.provenance.as_ref().map(RunProvenance::to_json))
-        .execute(&mut *tx)
-        .await?;
-        if updated.rows_affected() == 0 {
-            return Ok(false);
-        }
-        // Set only when measured: sqlx's Any driver hands PostgreSQL an absent f64 as a
-        // 4-byte float, which the server refuses for a DOUBLE PRECISION parameter.
-        if let Some(m) = ending.measured {
-            sqlx::query(
-                "UPDATE runs SET max_overcut_mm = $2, max_undercut_mm = $3, delta_mm = $4, \
-                 within_delta = $5 WHERE id = $1",
-            )
-            .bind(id)
-            .bind(m.max_overcut_mm)
-            .bind(m.max_undercut_mm)
-            .bind(m.delta_mm)
-            .bind(i64::from(m.within_delta))
-            .execute(&mut *tx)
-            .await?;
-        }
-        // A run that did not complete stops once, at its resume line.
-        let stop = (ending.outcome != Outcome::Completed
-            && !ending.notes.iter().any(|n| n.kind == NoteKind::Stop))
-        .then(|| Note {
-            line: ending.resume_at,
-            ..Note::new(NoteKind::Stop, ending.reason.clone().unwrap_or_default())
+        let begun = Arc::new(Begun {
+            run: run.clone(),
+            started,
         });
-        let last: i64 =
-            sqlx::query("SELECT COALESCE(MAX(seq), 0) AS seq FROM run_notes WHERE run_id = $1")
-                .bind(id)
-                .fetch_one(&mut *tx)
-                .await
-                .and_then(|row| row.try_get("seq"))?;
-        for (seq, note) in (last + 1..).zip(ending.notes.iter().chain(&stop)) {
-            sqlx::query(
-                "INSERT INTO run_notes (run_id, seq, at, kind, line, code, text) \
-                 VALUES ($1, $2, $3, $4, $5, $6, $7)",
-            )
-            .bind(id)
-            .bind(seq)
-            .bind(note.at.clone().unwrap_or_else(|| ended.to_owned()))
-            .bind(note.kind.as_str())
-            .bind(note.line.map(line))
-            .bind(note.code.map(i64::from))
-            .bind(&note.text)
-            .execute(&mut *tx)
-            .await?;
-        }
-        tx.commit().await?;
-        Ok(true)
+        let (spool, why) = match (&self.down, &self.spool) {
+            (Some(why), Some(spool)) => (spool, why.clone()),
+            (_, spool) => match (self.database.begin(run, &uid, &begun.started).await, spool) {
+                (Ok(id), _) => {
+                    return Ok(Recorded {
+                        id,
+                        uid,
+                        kept: Kept::Database,
+                        begun,
+                    })
+                }
+                (Err(error), Some(spool)) => (spool, error.to_string()),
+                (Err(error), None) => return Err(error),
+            },
+        };
+        let id = spool.begin(run, &uid, &begun.started).await?;
+        Ok(Recorded {
+            id,
+            uid,
+            kept: spool.kept(why),
+            begun,
+        })
     }
 
-    /// Closes the records of this host whose process is gone without closing them (see
-    /// [`Process::liveness`]), each from what its log says ([`read_run`]): the outcome its
-    /// log's end gives, or `interrupted` if the log has none, with the resume point, the
-    /// last line known done and the alarms. The logs are only read. Returns the runs
-    /// closed, and the outcome each was given.
+    /// Adds a note to a run as it goes (an alarm, a hold, a resume). Returns where it went.
+    pub async fn note(&self, run: &Recorded, note: &Note) -> Result<Kept, RecordError> {
+        let key = Uid::random().map_err(RecordError::Key)?;
+        self.write(run, Write::Note(&key, note))
+            .await
+            .map(|(_, kept)| kept)
+    }
+
+    /// Closes a running record with how its run ended.
+    pub async fn finish(&self, run: &Recorded, ending: &Ending) -> Result<Finished, RecordError> {
+        let ended = Timestamp::now().to_text();
+        let (closed, kept) = self.write(run, Write::Close(ending, &ended)).await?;
+        Ok(Finished { closed, kept })
+    }
+
+    /// Writes to `run`'s record where it is: a run opened in the spool stays there until
+    /// uploaded; one opened in the database goes on there, unless part of it went to the
+    /// spool already (what follows goes after it) or the database cannot take this write,
+    /// which then goes to the spool, after a copy of the run's beginning.
+    async fn write(&self, run: &Recorded, write: Write<'_>) -> Result<(bool, Kept), RecordError> {
+        if let Kept::Spool { file, .. } = &run.kept {
+            let spool = match &self.spool {
+                Some(spool) if spool.file() == file => spool.clone(),
+                _ => Spool::new(file.clone()),
+            };
+            let written = write.to(spool.database().await?, run.id, &run.uid).await?;
+            return Ok((written, run.kept.clone()));
+        }
+        let Some(spool) = &self.spool else {
+            let written = write.to(&self.database, run.id, &run.uid).await?;
+            return Ok((written, Kept::Database));
+        };
+        // A spool that cannot be read (said when the records were opened) holds no part of
+        // this run for this write to go after.
+        if let Some(id) = spool.find(&run.uid).await.ok().flatten() {
+            let written = write.to(spool.database().await?, id, &run.uid).await?;
+            let why = format!(
+                "an earlier write of run {} went to the spool, and what follows it goes there too",
+                run.id
+            );
+            return Ok((written, spool.kept(why)));
+        }
+        let why = match write.to(&self.database, run.id, &run.uid).await {
+            Ok(written) => return Ok((written, Kept::Database)),
+            Err(error) => error.to_string(),
+        };
+        let id = spool.continuation(run).await?;
+        let written = write.to(spool.database().await?, id, &run.uid).await?;
+        Ok((written, spool.kept(why)))
+    }
+
+    /// Closes the records of this host whose process is gone without closing them, each
+    /// from what its log says: the outcome its log's end gives, or `interrupted` if the
+    /// log has none, with the resume point, the last line known done and the alarms. The
+    /// logs are only read; other hosts' records are left to them. Returns the runs closed,
+    /// and the outcome each was given. Nothing, if the database could not be reached when
+    /// opened (the next opening that reaches it closes them).
     pub async fn close_orphans(
         &self,
         here: &Process,
     ) -> Result<Vec<(RunId, Outcome)>, RecordError> {
-        let what = "look for runs whose process is gone";
-        let rows = sqlx::query(
-            "SELECT id, pid, process_started, boot_id, started_at, log_path, log_offset, \
-             resume_from FROM runs WHERE outcome = 'running' AND host = $1 ORDER BY id",
-        )
-        .bind(&here.host)
-        .fetch_all(&self.pool)
-        .await
-        .map_err(self.error(what))?;
-        let mut closed = Vec::new();
-        for row in rows {
-            let get = |e| self.error(what)(e);
-            let id: RunId = row.try_get("id").map_err(get)?;
-            let pid: i64 = row.try_get("pid").map_err(get)?;
-            let owner = Process {
-                host: here.host.clone(),
-                pid: u32::try_from(pid).unwrap_or(u32::MAX),
-                started: row
-                    .try_get::<Option<i64>, _>("process_started")
-                    .map_err(get)?
-                    .map(|s| s.max(0) as u64),
-                boot: row.try_get("boot_id").map_err(get)?,
-            };
-            if owner.liveness(here) != Liveness::Gone {
-                continue;
-            }
-            let started: String = row.try_get("started_at").map_err(get)?;
-            let log_path: Option<String> = row.try_get("log_path").map_err(get)?;
-            let log_offset: Option<i64> = row.try_get("log_offset").map_err(get)?;
-            let from_line = usize_of(row.try_get("resume_from").map_err(get)?).unwrap_or(1);
-            let log = log_path.map(|path| {
-                let facts = read_run(
-                    Path::new(&path),
-                    log_offset.map_or(0, |o| o.max(0) as u64),
-                    from_line,
-                );
-                (path, facts)
-            });
-            let (ending, ended) = orphan_ending(owner.pid, &started, log);
-            if self.close(id, &ending, &ended).await? {
-                closed.push((id, ending.outcome));
-            }
+        if self.down.is_some() {
+            return Ok(Vec::new());
         }
-        Ok(closed)
+        self.database.close_orphans(here).await
     }
 
-    /// The runs `filter` lets through, newest first.
+    /// Uploads what the spool keeps to the database: each run its process is done with
+    /// (closed, or closed here first from its log if its process is gone), with its notes,
+    /// keyed by its key, then removed from the spool. An upload cut short and tried again
+    /// adds nothing twice. Nothing to do for a database without a spool.
+    pub async fn upload(&self) -> Result<Uploaded, RecordError> {
+        match &self.spool {
+            Some(spool) => spool.upload(&self.database, &Process::current()).await,
+            None => Ok(Uploaded::default()),
+        }
+    }
+
+    /// The runs `filter` lets through, newest first, from every machine and host that
+    /// records into the database.
     pub async fn list(&self, filter: &Filter) -> Result<Vec<RunSummary>, RecordError> {
-        let what = "list the runs";
-        let rows = sqlx::query(
-            "SELECT id, kind, outcome, started_at, ended_at, job_path, program_name, \
-             machine_name, transport, port, resume_at, reason FROM runs \
-             WHERE ($1 IS NULL OR LOWER(job_path) LIKE $1 ESCAPE '\\' \
-                    OR LOWER(program_name) LIKE $1 ESCAPE '\\') \
-             AND ($2 IS NULL OR LOWER(machine_name) LIKE $2 ESCAPE '\\' \
-                  OR LOWER(machine_path) LIKE $2 ESCAPE '\\') \
-             AND ($3 IS NULL OR started_at >= $3) \
-             AND ($4 IS NULL OR started_at < $4) \
-             AND ($5 IS NULL OR outcome = $5) \
-             ORDER BY id DESC LIMIT $6",
-        )
-        .bind(filter.job.as_deref().map(contains))
-        .bind(filter.machine.as_deref().map(contains))
-        .bind(filter.since.map(Timestamp::to_text))
-        .bind(filter.until.map(Timestamp::to_text))
-        .bind(filter.outcome.map(Outcome::as_str))
-        .bind(filter.limit.map_or(i64::MAX, i64::from))
-        .fetch_all(&self.pool)
-        .await
-        .map_err(self.error(what))?;
-        rows.iter()
-            .map(summary)
-            .collect::<Result<_, _>>()
-            .map_err(self.error(what))
+        self.database.list(filter).await
     }
 
     /// The whole record of run `id`, with its notes; `None` if there is none.
     pub async fn show(&self, id: RunId) -> Result<Option<Run>, RecordError> {
-        let what = "read the run";
-        let Some(row) = sqlx::query(
-            "SELECT id, kind, outcome, started_at, ended_at, job_path, program_name, \
-             machine_name, transport, resume_at, reason, host, pid, job_sha256, job_text, \
-             machine_path, machine_sha256, machine_text, program_sha256, program_lines, port, \
-             plan_report, max_overcut_mm, max_undercut_mm, delta_mm, within_delta, \
-             resume_from, resumes, possibly_run_to, last_line, log_path, log_offset, \
-             provenance FROM runs WHERE id = $1",
-        )
-        .bind(id)
-        .fetch_optional(&self.pool)
-        .await
-        .map_err(self.error(what))?
-        else {
-            return Ok(None);
-        };
-        let notes = sqlx::query(
-            "SELECT at, kind, line, code, text FROM run_notes WHERE run_id = $1 ORDER BY seq",
-        )
-        .bind(id)
-        .fetch_all(&self.pool)
-        .await
-        .map_err(self.error(what))?;
-        let notes = notes
-            .iter()
-            .map(note)
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(self.error(what))?;
-        run(&row, notes).map(Some).map_err(self.error(what))
+        self.database.show(id).await
     }
 
     /// Closes the connections.
     pub async fn close_connections(self) {
-        self.pool.close().await;
+        if let Some(spool) = self.spool {
+            spool.close_connections().await;
+        }
+        self.database.close_connections().await;
     }
-}
-
-/// Another writer took the id (or the note's number) chosen.
-fn taken(error: &sqlx::Error) -> bool {
-    matches!(error, sqlx::Error::Database(e) if e.is_unique_violation())
-}
-
-/// A count or a line as the database holds it.
-fn line(n: usize) -> i64 {
-    i64::try_from(n).unwrap_or(i64::MAX)
-}
-
-fn saturating(n: u64) -> i64 {
-    i64::try_from(n).unwrap_or(i64::MAX)
-}
-
-fn usize_of(n: Option<i64>) -> Option<usize> {
-    n.and_then(|n| usize::try_from(n).ok())
-}
-
-/// The `LIKE` pattern of "contains `text`, in any case", `\` escaping the pattern's own
-/// characters.
-fn contains(text: &str) -> String {
-    let mut pattern = String::from("%");
-    for c in text.to_lowercase().chars() {
-        if matches!(c, '%' | '_' | '\\') {
-            pattern.push('\\');
-        }
-        pattern.push(c);
-    }
-    pattern.push('%');
-    pattern
-}
-
-/// How an orphaned run is closed: from what its log says, if it has a log, and when it
-/// ended (the record's start plus the log's last event, or now).
-fn orphan_ending(
-    pid: u32,
-    started: &str,
-    log: Option<(String, std::io::Result<LogFacts>)>,
-) -> (Ending, String) {
-    let gone = format!("its process ({pid}) ended without closing the record");
-    let (ending, last_t) = match log {
-        None => {
-            let mut ending = Ending::new(Outcome::Interrupted);
-            ending.reason = Some(format!("{gone}; it kept no log"));
-            (ending, None)
-        }
-        Some((path, Err(error))) => {
-            let mut ending = Ending::new(Outcome::Interrupted);
-            ending.reason = Some(format!("{gone}; its log {path} cannot be read: {error}"));
-            (ending, None)
-        }
-        Some((path, Ok(facts))) => {
-            let outcome = match facts.ended {
-                Some(Ended::Completed) => Outcome::Completed,
-                Some(Ended::Stopped) => Outcome::Stopped,
-                Some(Ended::Interrupted) | None => Outcome::Interrupted,
-            };
-            let mut ending = Ending::new(outcome);
-            ending.reason = Some(match (outcome, &facts.reason) {
-                (Outcome::Interrupted, _) => {
-                    format!("{gone}; its log {path} ends without the run's end")
-                }
-                (_, Some(reason)) => format!("{reason} ({gone}; closed from its log)"),
-                (_, None) => format!("{gone}; closed from its log {path}"),
-            });
-            ending.resume_at = facts.resume_at;
-            ending.possibly_run_to = facts.possibly_run_to;
-            ending.add_log(&facts, Timestamp::parse(started).ok());
-            (ending, facts.last_t)
-        }
-    };
-    let ended = match (Timestamp::parse(started), last_t) {
-        (Ok(start), Some(t)) if t.is_finite() && t >= 0.0 => {
-            Timestamp(start.0.saturating_add((t * 1000.0) as i64)).to_text()
-        }
-        _ => Timestamp::now().to_text(),
-    };
-    (ending, ended)
-}
-
-fn summary(row: &AnyRow) -> Result<RunSummary, sqlx::Error> {
-    let word = |column: &str| -> Result<String, sqlx::Error> { row.try_get(column) };
-    let kind = word("kind")?;
-    let outcome = word("outcome")?;
-    let unknown = |column: &str, value: &str| sqlx::Error::ColumnDecode {
-        index: column.to_owned(),
-        source: format!("\"{value}\" is not a word this whirl knows").into(),
-    };
-    let kind = Kind::from_word(&kind).ok_or_else(|| unknown("kind", &kind))?;
-    let port: Option<String> = row.try_get("port")?;
-    let started_at: String = row.try_get("started_at")?;
-    let ended_at: Option<String> = row.try_get("ended_at")?;
-    Ok(RunSummary {
-        id: row.try_get("id")?,
-        kind,
-        outcome: Outcome::from_word(&outcome).ok_or_else(|| unknown("outcome", &outcome))?,
-        duration_s: super::duration_s(&started_at, ended_at.as_deref(), Timestamp::now()),
-        started_at,
-        ended_at,
-        job: row.try_get("job_path")?,
-        program: row.try_get("program_name")?,
-        machine: row.try_get("machine_name")?,
-        transport: row.try_get("transport")?,
-        mode: RunMode::of(kind, port.as_deref()),
-        resume_at: usize_of(row.try_get("resume_at")?),
-        reason: row.try_get("reason")?,
-    })
-}
-
-fn note(row: &AnyRow) -> Result<Note, sqlx::Error> {
-    let kind: String = row.try_get("kind")?;
-    Ok(Note {
-        kind: NoteKind::from_word(&kind).ok_or_else(|| sqlx::Error::ColumnDecode {
-            index: "kind".into(),
-            source: format!("\"{kind}\" is not a note this whirl knows").into(),
-        })?,
-        at: row.try_get("at")?,
-        line: usize_of(row.try_get("line")?),
-        code: row
-            .try_get::<Option<i64>, _>("code")?
-            .and_then(|c| u32::try_from(c).ok()),
-        text: row.try_get("text")?,
-    })
-}
-
-fn run(row: &AnyRow, notes: Vec<Note>) -> Result<Run, sqlx::Error> {
-    let snapshot =
-        |path: &str, sha: &str, text: &str| -> Result<Option<FileSnapshot>, sqlx::Error> {
-            let (path, sha256, text): (Option<String>, Option<String>, Option<String>) =
-                (row.try_get(path)?, row.try_get(sha)?, row.try_get(text)?);
-            Ok(match (path, sha256, text) {
-                (Some(path), Some(sha256), Some(text)) => Some(FileSnapshot { path, sha256, text }),
-                _ => None,
-            })
-        };
-    let summary = summary(row)?;
-    let program_id = match (
-        summary.program.clone(),
-        row.try_get::<Option<String>, _>("program_sha256")?,
-        usize_of(row.try_get("program_lines")?),
-    ) {
-        (Some(name), Some(sha256), Some(lines)) => Some(ProgramId {
-            name,
-            sha256,
-            lines,
-        }),
-        _ => None,
-    };
-    let measured = match (
-        row.try_get::<Option<f64>, _>("max_overcut_mm")?,
-        row.try_get::<Option<f64>, _>("max_undercut_mm")?,
-        row.try_get::<Option<f64>, _>("delta_mm")?,
-        row.try_get::<Option<i64>, _>("within_delta")?,
-    ) {
-        (Some(max_overcut_mm), Some(max_undercut_mm), Some(delta_mm), Some(within)) => {
-            Some(Measured {
-                max_overcut_mm,
-                max_undercut_mm,
-                delta_mm,
-                within_delta: within != 0,
-            })
-        }
-        _ => None,
-    };
-    let plan_report = row
-        .try_get::<Option<String>, _>("plan_report")?
-        .map(|text| serde_json::from_str(&text).unwrap_or(serde_json::Value::String(text)));
-    let provenance = row
-        .try_get::<Option<String>, _>("provenance")?
-        .map(|text| serde_json::from_str(&text).unwrap_or(serde_json::Value::String(text)));
-    let log = row
-        .try_get::<Option<String>, _>("log_path")?
-        .map(|path| -> Result<LogPlace, sqlx::Error> {
-            Ok(LogPlace {
-                path: PathBuf::from(path),
-                offset: row
-                    .try_get::<Option<i64>, _>("log_offset")?
-                    .map_or(0, |o| o.max(0) as u64),
-            })
-        })
-        .transpose()?;
-    Ok(Run {
-        host: row.try_get("host")?,
-        pid: u32::try_from(row.try_get::<i64, _>("pid")?).unwrap_or(u32::MAX),
-        job_file: snapshot("job_path", "job_sha256", "job_text")?,
-        machine_file: snapshot("machine_path", "machine_sha256", "machine_text")?,
-        program_id,
-        port: row.try_get("port")?,
-        plan_report,
-        provenance,
-        measured,
-        resume_from: usize_of(row.try_get("resume_from")?),
-        resumes: row.try_get("resumes")?,
-        possibly_run_to: usize_of(row.try_get("possibly_run_to")?),
-        last_line: usize_of(row.try_get("last_line")?),
-        log,
-        notes,
-        summary,
-    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::records::Kind;
 
     #[test]
     fn a_database_is_named_by_a_url_or_a_path() {
         assert!(matches!(
             Place::parse("postgres://whirl@127.0.0.1:5432/shop").unwrap(),
-            Place::Postgres(_)
+            Place::Postgres { spool: None, .. }
         ));
         assert!(matches!(
             Place::parse("postgresql://127.0.0.1/shop").unwrap(),
-            Place::Postgres(_)
+            Place::Postgres { .. }
         ));
         let Place::Sqlite { options, create } = Place::parse("records/runs.sqlite").unwrap() else {
             panic!("a path is a SQLite file");
@@ -982,22 +664,6 @@ mod tests {
     }
 
     #[test]
-    fn every_sqlite_connection_waits_for_another_writer() {
-        let dir = tempfile::tempdir().unwrap();
-        let place = Place::parse(dir.path().join("runs.sqlite").to_str().unwrap()).unwrap();
-        let waits: i64 = block_on(async {
-            let store = Store::open(&place).await.unwrap();
-            sqlx::query("PRAGMA busy_timeout")
-                .fetch_one(&store.pool)
-                .await
-                .unwrap()
-                .try_get(0)
-                .unwrap()
-        });
-        assert_eq!(waits, SQLITE_BUSY_TIMEOUT.as_millis() as i64);
-    }
-
-    #[test]
     fn writers_at_once_on_one_sqlite_file_each_get_their_run_recorded() {
         // Eight processes' worth of stores (each its own connections) opening a new file
         // and recording five runs each, all at once: every run gets a record, and each a
@@ -1012,12 +678,12 @@ mod tests {
                         let store = Store::open(&place).await.unwrap();
                         let mut ids = Vec::new();
                         for _ in 0..5 {
-                            let id = store.begin(&NewRun::new(Kind::Plan)).await.unwrap();
+                            let run = store.begin(&NewRun::new(Kind::Plan)).await.unwrap();
                             store
-                                .finish(id, &Ending::new(Outcome::Completed))
+                                .finish(&run, &Ending::new(Outcome::Completed))
                                 .await
                                 .unwrap();
-                            ids.push(id);
+                            ids.push(run.id);
                         }
                         ids
                     })
@@ -1051,6 +717,26 @@ mod tests {
     }
 
     #[test]
+    fn a_postgresql_database_has_its_own_spool_beside_the_default_file() {
+        let url = "postgres://whirl:s3cret@db.shop.lan:5433/shop";
+        let place = Place::parse(url).unwrap();
+        assert_eq!(place.spool(), None, "none until a data folder is given");
+        let place = place.with_spool_in(Path::new("/data"));
+        assert_eq!(
+            place.spool().unwrap(),
+            Path::new("/data/whirl/spool-db.shop.lan-5433-shop.sqlite")
+        );
+        let other = Place::parse("postgres://whirl@db.shop.lan:5433/tools")
+            .unwrap()
+            .with_spool_in(Path::new("/data"));
+        assert_ne!(other.spool(), place.spool(), "one spool a database");
+        let sqlite = Place::parse("runs.sqlite")
+            .unwrap()
+            .with_spool_in(Path::new("/data"));
+        assert_eq!(sqlite.spool(), None, "a SQLite file needs none");
+    }
+
+    #[test]
     fn a_password_is_never_said() {
         assert_eq!(
             without_password("postgres://whirl:s3cret@10.0.0.5:5432/shop"),
@@ -1064,47 +750,5 @@ mod tests {
             Place::parse("postgres://a:b@h/d").unwrap().name(),
             "postgres://a:***@h/d"
         );
-    }
-
-    #[test]
-    fn a_search_word_is_matched_as_it_is_written() {
-        assert_eq!(contains("Double"), "%double%");
-        assert_eq!(contains("50%_a\\b"), "%50\\%\\_a\\\\b%");
-    }
-
-    #[test]
-    fn an_orphan_without_a_readable_log_is_interrupted_and_says_why() {
-        let (ending, _) = orphan_ending(42, "2026-05-01T00:00:00.000Z", None);
-        assert_eq!(ending.outcome, Outcome::Interrupted);
-        assert!(ending.reason.as_deref().unwrap().contains("(42)"));
-        let missing = std::io::Error::from(std::io::ErrorKind::NotFound);
-        let (ending, _) = orphan_ending(
-            42,
-            "2026-05-01T00:00:00.000Z",
-            Some(("/gone/exec.jsonl".into(), Err(missing))),
-        );
-        assert_eq!(ending.outcome, Outcome::Interrupted);
-        assert!(ending
-            .reason
-            .as_deref()
-            .unwrap()
-            .contains("/gone/exec.jsonl"));
-    }
-
-    #[test]
-    fn an_orphan_whose_log_ended_the_run_is_closed_as_the_log_says_at_its_last_event() {
-        let facts = LogFacts {
-            ended: Some(Ended::Completed),
-            last_t: Some(90.5),
-            ..LogFacts::default()
-        };
-        let (ending, ended) = orphan_ending(
-            42,
-            "2026-05-01T00:00:00.000Z",
-            Some(("exec.jsonl".into(), Ok(facts))),
-        );
-        assert_eq!(ending.outcome, Outcome::Completed);
-        assert_eq!(ended, "2026-05-01T00:01:30.500Z");
-        assert!(ending.notes.is_empty());
     }
 }

@@ -15,9 +15,10 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 use whirl::records::process::Process;
+use whirl::records::store::POSTGRES_TIMEOUT;
 use whirl::records::{
-    Ending, FileSnapshot, Filter, Kind, LogPlace, Measured, NewRun, Note, NoteKind, Outcome, Place,
-    ProgramId, Store, Timestamp,
+    Ending, FileSnapshot, Filter, Kept, Kind, LogPlace, Measured, NewRun, Note, NoteKind, Outcome,
+    Place, ProgramId, Store, Timestamp,
 };
 
 use crate::util::{self, Sim};
@@ -30,6 +31,8 @@ use crate::util::{self, Sim};
 struct Postgres {
     bin: PathBuf,
     port: u16,
+    /// The user and group it runs as (as root: nobody's).
+    user: Option<(u32, u32)>,
     child: Mutex<Child>,
     databases: AtomicUsize,
     dir: tempfile::TempDir,
@@ -50,26 +53,37 @@ fn postgres_bin() -> Option<PathBuf> {
     found.pop().map(|(_, bin)| bin)
 }
 
-/// The server the tests share, started if none runs; `None` (the test then says it
-/// skipped) where PostgreSQL is not installed, which with `CI` set fails the test instead.
-fn postgres() -> Option<Arc<Postgres>> {
-    static SHARED: Mutex<Weak<Postgres>> = Mutex::new(Weak::new());
-    let mut shared = SHARED.lock().unwrap_or_else(|p| p.into_inner());
-    if let Some(server) = shared.upgrade() {
-        return Some(server);
-    }
-    let Some(bin) = postgres_bin() else {
+/// PostgreSQL's programs; `None` (the test then says it skipped) where PostgreSQL is not
+/// installed, which with `CI` set fails the test instead.
+fn postgres_installed() -> Option<PathBuf> {
+    let bin = postgres_bin();
+    if bin.is_none() {
         let missing = "PostgreSQL 15 or later is not installed (apt-get install postgresql)";
         assert!(
             std::env::var_os("CI").is_none(),
             "on CI PostgreSQL must be there: {missing}"
         );
         eprintln!("skipped: {missing}");
-        return None;
-    };
-    let server = Arc::new(Postgres::start(bin));
+    }
+    bin
+}
+
+/// The server the tests share, started if none runs (`None` as [`postgres_installed`]).
+fn postgres() -> Option<Arc<Postgres>> {
+    static SHARED: Mutex<Weak<Postgres>> = Mutex::new(Weak::new());
+    let mut shared = SHARED.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some(server) = shared.upgrade() {
+        return Some(server);
+    }
+    let server = Arc::new(Postgres::start(postgres_installed()?));
     *shared = Arc::downgrade(&server);
     Some(server)
+}
+
+/// A server of the test's own, to stop, start again or freeze (`None` as
+/// [`postgres_installed`]).
+fn private_postgres() -> Option<Postgres> {
+    Some(Postgres::start(postgres_installed()?))
 }
 
 /// `user:group` ids to run the server as: postgres refuses to run as root, so as root it
@@ -89,6 +103,25 @@ fn server_user(dir: &Path) -> Option<(u32, u32)> {
     Some((nobody[2].parse().unwrap(), nobody[3].parse().unwrap()))
 }
 
+/// PostgreSQL's `program` in `bin`, run as `user` if given.
+fn as_server(bin: &Path, user: Option<(u32, u32)>, program: &str) -> Command {
+    let mut command = match user {
+        Some((uid, gid)) => {
+            let mut c = Command::new("setpriv");
+            c.args([
+                format!("--reuid={uid}"),
+                format!("--regid={gid}"),
+                "--clear-groups".into(),
+            ])
+            .arg(bin.join(program));
+            c
+        }
+        None => Command::new(bin.join(program)),
+    };
+    command.env_remove("PGDATA");
+    command
+}
+
 impl Postgres {
     fn start(bin: PathBuf) -> Postgres {
         use std::os::unix::fs::PermissionsExt;
@@ -101,24 +134,7 @@ impl Postgres {
             std::fs::set_permissions(dir.path(), std::fs::Permissions::from_mode(0o755)).unwrap();
             std::os::unix::fs::chown(&data, Some(uid), Some(gid)).unwrap();
         }
-        let as_server = |program: &str| {
-            let mut command = match user {
-                Some((uid, gid)) => {
-                    let mut c = Command::new("setpriv");
-                    c.args([
-                        format!("--reuid={uid}"),
-                        format!("--regid={gid}"),
-                        "--clear-groups".into(),
-                    ])
-                    .arg(bin.join(program));
-                    c
-                }
-                None => Command::new(bin.join(program)),
-            };
-            command.env_remove("PGDATA");
-            command
-        };
-        let o = as_server("initdb")
+        let o = as_server(&bin, user, "initdb")
             .args([
                 "-U",
                 "postgres",
@@ -143,10 +159,29 @@ impl Postgres {
             .local_addr()
             .unwrap()
             .port();
-        let server_log = std::fs::File::create(dir.path().join("server.log")).unwrap();
-        let child = as_server("postgres")
+        let child = Postgres::serve(&bin, user, dir.path(), port);
+        let server = Postgres {
+            bin,
+            port,
+            user,
+            child: Mutex::new(child),
+            databases: AtomicUsize::new(0),
+            dir,
+        };
+        server.wait_ready();
+        server
+    }
+
+    /// The server process on the data in `dir`, on `port`.
+    fn serve(bin: &Path, user: Option<(u32, u32)>, dir: &Path, port: u16) -> Child {
+        let server_log = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(dir.join("server.log"))
+            .unwrap();
+        as_server(bin, user, "postgres")
             .arg("-D")
-            .arg(&data)
+            .arg(dir.join("data"))
             .args(["-p", &port.to_string()])
             .args(["-c", "listen_addresses=127.0.0.1"])
             .args(["-c", "unix_socket_directories="])
@@ -155,24 +190,61 @@ impl Postgres {
             .stdout(Stdio::null())
             .stderr(server_log)
             .spawn()
-            .expect("postgres starts");
-        let server = Postgres {
-            bin,
-            port,
-            child: Mutex::new(child),
-            databases: AtomicUsize::new(0),
-            dir,
-        };
+            .expect("postgres starts")
+    }
+
+    /// Waits until the server answers (a minute: a loaded host starts it slowly, and a
+    /// server that has not answered by then will not).
+    fn wait_ready(&self) {
         let deadline = Instant::now() + Duration::from_secs(60);
-        while !server.psql("postgres", "SELECT 1").status.success() {
+        while !self.psql("postgres", "SELECT 1").status.success() {
             assert!(
                 Instant::now() < deadline,
                 "PostgreSQL did not start: {}",
-                std::fs::read_to_string(server.dir.path().join("server.log")).unwrap_or_default()
+                std::fs::read_to_string(self.dir.path().join("server.log")).unwrap_or_default()
             );
             std::thread::sleep(Duration::from_millis(100));
         }
-        server
+    }
+
+    /// Stops the server as `pg_ctl stop -m fast` does (SIGINT: its clients cut off, its
+    /// data kept), and waits for it to end.
+    fn stop(&self) {
+        let mut child = self.child.lock().unwrap_or_else(|p| p.into_inner());
+        stop(&mut child);
+    }
+
+    /// Starts the stopped server again, on its port, with its data.
+    fn start_again(&self) {
+        *self.child.lock().unwrap_or_else(|p| p.into_inner()) =
+            Postgres::serve(&self.bin, self.user, self.dir.path(), self.port);
+        self.wait_ready();
+    }
+
+    /// Sends `signal` to the server and every process of its (the postmaster's children,
+    /// which serve its connections), by their ids: SIGSTOP freezes it as a server that no
+    /// longer answers, SIGCONT lets it go on.
+    fn signal_all(&self, signal: &str) {
+        let postmaster = self.child.lock().unwrap_or_else(|p| p.into_inner()).id();
+        let mut pids = vec![postmaster];
+        for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+            let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
+                continue;
+            };
+            let stat = std::fs::read_to_string(entry.path().join("stat")).unwrap_or_default();
+            let parent = stat
+                .rfind(')')
+                .and_then(|end| stat[end + 1..].split_whitespace().nth(1))
+                .and_then(|p| p.parse::<u32>().ok());
+            if parent == Some(postmaster) {
+                pids.push(pid);
+            }
+        }
+        for pid in pids {
+            let _ = Command::new("kill")
+                .args([&format!("-{signal}"), &pid.to_string()])
+                .status();
+        }
     }
 
     fn psql(&self, database: &str, sql: &str) -> Output {
@@ -199,19 +271,38 @@ impl Postgres {
     }
 }
 
+/// A fast shutdown (SIGINT), then, if the server lingers past 20 s, a kill; nothing for a
+/// server that has ended.
+fn stop(child: &mut Child) {
+    if child.try_wait().ok().flatten().is_some() {
+        return;
+    }
+    let _ = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while child.try_wait().ok().flatten().is_none() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+}
+
 impl Drop for Postgres {
     fn drop(&mut self) {
-        let mut child = self.child.lock().unwrap_or_else(|p| p.into_inner());
-        // A fast shutdown (SIGINT), then, if it lingers, a kill.
-        let _ = Command::new("kill")
-            .args(["-INT", &child.id().to_string()])
-            .status();
-        let deadline = Instant::now() + Duration::from_secs(20);
-        while child.try_wait().ok().flatten().is_none() && Instant::now() < deadline {
-            std::thread::sleep(Duration::from_millis(20));
+        // A frozen server hears no SIGINT.
+        let running = self
+            .child
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .try_wait()
+            .ok()
+            .flatten()
+            .is_none();
+        if running {
+            self.signal_all("CONT");
         }
-        let _ = child.kill();
-        let _ = child.wait();
+        self.stop();
     }
 }
 
@@ -265,17 +356,22 @@ async fn store_suite(place: Place) {
     // A plan: its inputs kept whole, the program and report known at its end.
     let mut plan = new_run(Kind::Plan, "jobs/Double-Start.toml", "sim", None);
     plan.plan_report = None;
-    let plan_id = store.begin(&plan).await.unwrap();
+    let plan_run = store.begin(&plan).await.unwrap();
+    let plan_id = plan_run.id;
+    assert_eq!(plan_run.kept, Kept::Database);
     let program = ProgramId::of("double-start.nc", "G21 G90\nG1 X1 F100\nM2\n");
     let mut done = Ending::new(Outcome::Completed);
     done.program = Some(program.clone());
     done.plan_report = Some(r#"{"segments":3,"delta_mm":0.005}"#.into());
-    assert!(store.finish(plan_id, &done).await.unwrap());
+    assert!(store.finish(&plan_run, &done).await.unwrap().closed);
     // A record is closed once: a second ending changes nothing.
-    assert!(!store
-        .finish(plan_id, &Ending::new(Outcome::Failed))
-        .await
-        .unwrap());
+    assert!(
+        !store
+            .finish(&plan_run, &Ending::new(Outcome::Failed))
+            .await
+            .unwrap()
+            .closed
+    );
     let shown = store.show(plan_id).await.unwrap().unwrap();
     assert_eq!(shown.summary.kind, Kind::Plan);
     assert_eq!(shown.summary.outcome, Outcome::Completed);
@@ -283,7 +379,8 @@ async fn store_suite(place: Place) {
     assert_eq!(shown.machine_file, plan.machine);
     assert_eq!(shown.program_id, Some(program.clone()));
     assert_eq!(shown.plan_report.as_ref().unwrap()["segments"], 3);
-    assert_eq!(shown.host, plan.process.host);
+    assert_eq!(shown.summary.host, plan.process.host);
+    assert_eq!(shown.uid.as_ref(), Some(&plan_run.uid));
     assert_eq!(shown.pid, std::process::id());
     let (started, ended) = (
         Timestamp::parse(&shown.summary.started_at).unwrap(),
@@ -304,11 +401,12 @@ async fn store_suite(place: Place) {
         path: PathBuf::from("/var/log/whirl/exec.jsonl"),
         offset: 4096,
     });
-    let stream_id = store.begin(&stream).await.unwrap();
+    let stream_run = store.begin(&stream).await.unwrap();
+    let stream_id = stream_run.id;
     assert!(stream_id > plan_id);
     store
         .note(
-            stream_id,
+            &stream_run,
             &Note {
                 line: Some(80),
                 ..Note::new(NoteKind::Hold, "Hold pressed")
@@ -317,7 +415,7 @@ async fn store_suite(place: Place) {
         .await
         .unwrap();
     store
-        .note(stream_id, &Note::new(NoteKind::Resume, "Resume pressed"))
+        .note(&stream_run, &Note::new(NoteKind::Resume, "Resume pressed"))
         .await
         .unwrap();
     let mut stopped = Ending::new(Outcome::Stopped);
@@ -335,7 +433,7 @@ async fn store_suite(place: Place) {
             ..Note::new(NoteKind::Stop, "ALARM:64")
         },
     ];
-    assert!(store.finish(stream_id, &stopped).await.unwrap());
+    assert!(store.finish(&stream_run, &stopped).await.unwrap().closed);
     let shown = store.show(stream_id).await.unwrap().unwrap();
     assert_eq!(shown.summary.outcome, Outcome::Stopped);
     assert_eq!(
@@ -374,7 +472,7 @@ async fn store_suite(place: Place) {
         Some(&program),
     );
     resumed.resume_from = Some(120);
-    let resumed_id = store.begin(&resumed).await.unwrap();
+    let resumed_id = store.begin(&resumed).await.unwrap().id;
     assert_eq!(
         store.show(resumed_id).await.unwrap().unwrap().resumes,
         Some(stream_id)
@@ -382,7 +480,8 @@ async fn store_suite(place: Place) {
     let other = ProgramId::of("other.nc", "G0 X2\n");
     let mut unrelated = new_run(Kind::Stream, "jobs/other.toml", "sim", Some(&other));
     unrelated.resume_from = Some(120);
-    let unrelated_id = store.begin(&unrelated).await.unwrap();
+    let unrelated_run = store.begin(&unrelated).await.unwrap();
+    let unrelated_id = unrelated_run.id;
     assert_eq!(
         store.show(unrelated_id).await.unwrap().unwrap().resumes,
         None
@@ -395,7 +494,7 @@ async fn store_suite(place: Place) {
         delta_mm: 0.005,
         within_delta: true,
     });
-    store.finish(unrelated_id, &measured).await.unwrap();
+    store.finish(&unrelated_run, &measured).await.unwrap();
     assert_eq!(
         store.show(unrelated_id).await.unwrap().unwrap().measured,
         measured.measured
@@ -506,6 +605,7 @@ async fn store_suite(place: Place) {
                 ))
                 .await
                 .unwrap()
+                .id
         });
     }
     let mut ids = writers.join_all().await;
@@ -576,18 +676,19 @@ async fn orphans(store: &Store) {
         path: log.clone(),
         offset,
     });
-    let gone_id = store.begin(&gone).await.unwrap();
+    let gone_id = store.begin(&gone).await.unwrap().id;
     let mut elsewhere = new_run(Kind::Stream, "jobs/elsewhere.toml", "sim", None);
     elsewhere.process = Process {
         host: format!("{}-elsewhere", here.host),
         pid: gone_pid,
         ..here.clone()
     };
-    let elsewhere_id = store.begin(&elsewhere).await.unwrap();
+    let elsewhere_id = store.begin(&elsewhere).await.unwrap().id;
     let mine_id = store
         .begin(&new_run(Kind::Stream, "jobs/mine.toml", "sim", None))
         .await
-        .unwrap();
+        .unwrap()
+        .id;
 
     let closed = store.close_orphans(&here).await.unwrap();
     assert!(
@@ -733,6 +834,444 @@ fn a_sqlite_file_damaged_in_its_middle_is_refused_when_opened_and_kept_as_it_was
     }
     // Nothing recorded was lost: the file is as the damage left it.
     assert_eq!(std::fs::read(&file).unwrap(), bytes);
+}
+
+// ---------------------------------------------------------------------------------------
+// One database for a whole shop: many bridges at once, and the spool.
+
+/// The pid of a process that has ended: a bridge killed outright.
+fn gone_pid() -> u32 {
+    let mut child = Command::new("true").spawn().unwrap();
+    let pid = child.id();
+    child.wait().unwrap();
+    pid
+}
+
+/// Every run in `store`, whole, oldest first.
+async fn every_run(store: &Store) -> Vec<whirl::records::Run> {
+    let mut runs = Vec::new();
+    for summary in store.list(&Filter::default()).await.unwrap().iter().rev() {
+        runs.push(store.show(summary.id).await.unwrap().unwrap());
+    }
+    runs
+}
+
+#[test]
+fn twenty_bridges_at_once_on_one_postgresql_record_every_run_once_with_its_notes() {
+    let Some(server) = postgres() else { return };
+    let place = Place::parse(&server.database()).unwrap();
+    // The schema made first, as a shop's database has it before its bridges start.
+    block_on(async { Store::open(&place).await.unwrap().close_connections().await });
+    const BRIDGES: usize = 20;
+    const RUNS: usize = 3;
+    const NOTES: usize = 4;
+    // Each bridge its own process's worth of connections (a store of its own, on a thread
+    // of its own), all let go at once.
+    let start = Arc::new(std::sync::Barrier::new(BRIDGES));
+    let began = Instant::now();
+    let bridges: Vec<_> = (0..BRIDGES)
+        .map(|b| {
+            let (place, start) = (place.clone(), Arc::clone(&start));
+            std::thread::spawn(move || {
+                block_on(async move {
+                    let store = Store::open(&place).await.unwrap();
+                    start.wait();
+                    let mut recorded = Vec::new();
+                    for r in 0..RUNS {
+                        let name = format!("bridge {b} run {r}");
+                        let job = format!("jobs/{b}-{r}.toml");
+                        let machine = format!("lathe-{b}");
+                        let run = store
+                            .begin(&new_run(Kind::Stream, &job, &machine, None))
+                            .await
+                            .unwrap();
+                        assert_eq!(run.kept, Kept::Database);
+                        for n in 0..NOTES {
+                            let note = Note {
+                                line: Some(n + 1),
+                                ..Note::new(NoteKind::Hold, format!("{name} hold {n}"))
+                            };
+                            assert_eq!(store.note(&run, &note).await.unwrap(), Kept::Database);
+                        }
+                        let mut stopped = Ending::new(Outcome::Stopped);
+                        stopped.reason = Some(format!("{name} stopped"));
+                        stopped.resume_at = Some(NOTES + 1);
+                        let finished = store.finish(&run, &stopped).await.unwrap();
+                        assert!(finished.closed && finished.kept == Kept::Database);
+                        recorded.push((run.id, run.uid, name));
+                    }
+                    store.close_connections().await;
+                    recorded
+                })
+            })
+        })
+        .collect();
+    let recorded: Vec<_> = bridges
+        .into_iter()
+        .flat_map(|b| b.join().unwrap())
+        .collect();
+    eprintln!(
+        "{BRIDGES} bridges at once, {RUNS} runs each, each noted {NOTES} times and closed: {:?}",
+        began.elapsed()
+    );
+    // Numbers 1 to 60, each run its own; keys all different.
+    let mut ids: Vec<i64> = recorded.iter().map(|(id, _, _)| *id).collect();
+    ids.sort_unstable();
+    assert_eq!(ids, (1..=(BRIDGES * RUNS) as i64).collect::<Vec<_>>());
+    let keys: std::collections::HashSet<_> = recorded.iter().map(|(_, uid, _)| uid).collect();
+    assert_eq!(keys.len(), BRIDGES * RUNS);
+    // The database holds those runs and no others, each whole: its notes in the order
+    // they were written, then its stop.
+    block_on(async {
+        let store = Store::open(&place).await.unwrap();
+        let runs = every_run(&store).await;
+        let mut listed: Vec<i64> = runs.iter().map(|r| r.summary.id).collect();
+        listed.sort_unstable();
+        assert_eq!(listed, ids);
+        for (id, uid, name) in &recorded {
+            let run = runs.iter().find(|r| r.summary.id == *id).unwrap();
+            assert_eq!(run.uid.as_ref(), Some(uid));
+            assert_eq!(run.summary.outcome, Outcome::Stopped);
+            let mut expected: Vec<(NoteKind, String)> = (0..NOTES)
+                .map(|n| (NoteKind::Hold, format!("{name} hold {n}")))
+                .collect();
+            expected.push((NoteKind::Stop, format!("{name} stopped")));
+            let notes: Vec<(NoteKind, String)> =
+                run.notes.iter().map(|n| (n.kind, n.text.clone())).collect();
+            assert_eq!(notes, expected);
+        }
+        store.close_connections().await;
+    });
+}
+
+/// The files of the SQLite file `file` (with its write-ahead log, if it has one), to put
+/// back as they were.
+fn sqlite_files(file: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    ["", "-wal", "-shm"]
+        .iter()
+        .filter_map(|suffix| {
+            let path = PathBuf::from(format!("{}{suffix}", file.display()));
+            std::fs::read(&path).ok().map(|bytes| (path, bytes))
+        })
+        .collect()
+}
+
+fn put_back(file: &Path, files: &[(PathBuf, Vec<u8>)]) {
+    for suffix in ["", "-wal", "-shm"] {
+        let _ = std::fs::remove_file(format!("{}{suffix}", file.display()));
+    }
+    for (path, bytes) in files {
+        std::fs::write(path, bytes).unwrap();
+    }
+}
+
+fn in_spool(kept: &Kept, spool: &Path) -> bool {
+    matches!(kept, Kept::Spool { file, .. } if file == spool)
+}
+
+#[test]
+fn a_postgresql_stopped_mid_run_keeps_the_runs_in_the_spool_and_the_next_opening_uploads_each_once()
+{
+    let Some(server) = private_postgres() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let place = Place::parse(&server.database())
+        .unwrap()
+        .with_spool_in(dir.path());
+    let spool = place.spool().unwrap().to_owned();
+    let here = Process::current();
+    // One runtime for the whole test: a store's connections live on the runtime that
+    // opened them.
+    block_on(async {
+        let first = Store::open(&place).await.unwrap();
+        assert!(first.down().is_none() && first.uploaded().is_none());
+        // A stream and a dry run begin in the database; the stream's hold is noted there.
+        let a = first
+            .begin(&new_run(Kind::Stream, "jobs/a.toml", "lathe-a", None))
+            .await
+            .unwrap();
+        let b = first
+            .begin(&new_run(Kind::DryRun, "jobs/b.toml", "lathe-b", None))
+            .await
+            .unwrap();
+        assert_eq!((&a.kept, &b.kept), (&Kept::Database, &Kept::Database));
+        let hold = Note {
+            line: Some(40),
+            ..Note::new(NoteKind::Hold, "held")
+        };
+        assert_eq!(first.note(&a, &hold).await.unwrap(), Kept::Database);
+        assert!(!spool.exists(), "a spool is made only when it is needed");
+
+        server.stop();
+        // The stream's resume and the dry run's end cannot reach it: each kept in the spool,
+        // after a copy of its run's beginning.
+        let resumed = first
+            .note(&a, &Note::new(NoteKind::Resume, "resumed"))
+            .await
+            .unwrap();
+        assert!(in_spool(&resumed, &spool), "{resumed:?}");
+        let b_end = first
+            .finish(&b, &Ending::new(Outcome::Completed))
+            .await
+            .unwrap();
+        assert!(b_end.closed && in_spool(&b_end.kept, &spool), "{b_end:?}");
+        // A bridge that starts while it is down opens its records all the same, its runs in
+        // the spool from their beginning: a plan, a stream still running when the database
+        // is back, and a stream whose bridge is killed.
+        let second = Store::open(&place).await.unwrap();
+        let why = second.down().expect("the database is down").to_owned();
+        assert!(why.contains(second.place()), "{why}");
+        let c = second
+            .begin(&new_run(Kind::Plan, "jobs/c.toml", "lathe-c", None))
+            .await
+            .unwrap();
+        assert!(in_spool(&c.kept, &spool), "{c:?}");
+        let alarm = Note {
+            code: Some(9),
+            ..Note::new(NoteKind::Alarm, "homing fail")
+        };
+        assert!(in_spool(&second.note(&c, &alarm).await.unwrap(), &spool));
+        assert!(
+            second
+                .finish(&c, &Ending::new(Outcome::Completed))
+                .await
+                .unwrap()
+                .closed
+        );
+        let d = second
+            .begin(&new_run(Kind::Stream, "jobs/d.toml", "lathe-d", None))
+            .await
+            .unwrap();
+        let mut killed = new_run(Kind::Stream, "jobs/e.toml", "lathe-e", None);
+        killed.process = Process {
+            pid: gone_pid(),
+            ..here.clone()
+        };
+        let e = second.begin(&killed).await.unwrap();
+        assert!(in_spool(&e.kept, &spool));
+        // While it is down, the history cannot be read, and says which database.
+        let error = second
+            .list(&Filter::default())
+            .await
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains(second.place()), "{error}");
+
+        server.start_again();
+        // The stream's end goes after its resume, to the spool, though the database is
+        // back: a run's writes stay in their order.
+        let mut stopped = Ending::new(Outcome::Stopped);
+        stopped.reason = Some("ALARM:3".into());
+        stopped.resume_at = Some(120);
+        stopped.notes = vec![Note {
+            code: Some(3),
+            ..Note::new(NoteKind::Alarm, "reset while in motion")
+        }];
+        let a_end = first.finish(&a, &stopped).await.unwrap();
+        assert!(a_end.closed && in_spool(&a_end.kept, &spool), "{a_end:?}");
+        first.close_connections().await;
+        second.close_connections().await;
+        let before_upload = sqlite_files(&spool);
+
+        // The next opening uploads every run whose process is done with it: the killed
+        // bridge's closed first, as interrupted; the running stream waits.
+        let third = Store::open(&place).await.unwrap();
+        let uploaded = third.uploaded().unwrap().as_ref().unwrap().clone();
+        assert_eq!(uploaded.runs.len(), 4, "{uploaded:?}");
+        assert_eq!(uploaded.waiting, 1, "{uploaded:?}");
+        let runs = every_run(&third).await;
+        let by_key = |uid: &whirl::records::Uid| {
+            let found: Vec<_> = runs
+                .iter()
+                .filter(|r| r.uid.as_ref() == Some(uid))
+                .collect();
+            assert_eq!(found.len(), 1, "{uid}: {runs:?}");
+            found[0].clone()
+        };
+        assert_eq!(runs.len(), 4, "{runs:?}");
+        // Begun in the database: the same numbers, completed from the spool.
+        let a_run = by_key(&a.uid);
+        assert_eq!(a_run.summary.id, a.id);
+        assert_eq!(a_run.summary.outcome, Outcome::Stopped);
+        assert_eq!(a_run.summary.resume_at, Some(120));
+        let notes: Vec<(NoteKind, &str)> = a_run
+            .notes
+            .iter()
+            .map(|n| (n.kind, n.text.as_str()))
+            .collect();
+        assert_eq!(
+            notes,
+            [
+                (NoteKind::Hold, "held"),
+                (NoteKind::Resume, "resumed"),
+                (NoteKind::Alarm, "reset while in motion"),
+                (NoteKind::Stop, "ALARM:3"),
+            ]
+        );
+        let b_run = by_key(&b.uid);
+        assert_eq!(
+            (b_run.summary.id, b_run.summary.outcome),
+            (b.id, Outcome::Completed)
+        );
+        assert!(b_run.notes.is_empty());
+        // Begun in the spool: whole, numbered by the database.
+        let c_run = by_key(&c.uid);
+        assert!(![a.id, b.id].contains(&c_run.summary.id));
+        assert_eq!(c_run.summary.outcome, Outcome::Completed);
+        assert_eq!(c_run.summary.machine.as_deref(), Some("lathe-c"));
+        assert_eq!(
+            c_run.job_file,
+            new_run(Kind::Plan, "jobs/c.toml", "x", None).job
+        );
+        assert_eq!(
+            c_run.notes.iter().map(|n| n.code).collect::<Vec<_>>(),
+            [Some(9)]
+        );
+        let e_run = by_key(&e.uid);
+        assert_eq!(e_run.summary.outcome, Outcome::Interrupted);
+        assert_eq!(e_run.summary.host, here.host);
+        // The running stream, closed, goes with the next upload.
+        let d_end = third
+            .finish(&d, &Ending::new(Outcome::Completed))
+            .await
+            .unwrap();
+        assert!(d_end.closed && in_spool(&d_end.kept, &spool));
+        let later = third.upload().await.unwrap();
+        assert_eq!((later.runs.len(), later.waiting), (1, 0), "{later:?}");
+        assert_eq!(
+            third.show(later.runs[0].1).await.unwrap().unwrap().uid,
+            Some(d.uid.clone())
+        );
+        assert_eq!(third.upload().await.unwrap(), Default::default());
+        let after = every_run(&third).await;
+        assert_eq!(after.len(), 5);
+        third.close_connections().await;
+
+        // An upload cut short between the database's commit and the spool's removal: the
+        // spool as it was before, uploaded again, finds every run by its key and adds
+        // nothing.
+        put_back(&spool, &before_upload);
+        let fourth = Store::open(&place).await.unwrap();
+        let again = fourth.uploaded().unwrap().as_ref().unwrap();
+        assert_eq!(again.runs, uploaded.runs);
+        assert_eq!(every_run(&fourth).await, after);
+        fourth.close_connections().await;
+    });
+}
+
+#[test]
+fn a_postgresql_that_stops_answering_never_holds_a_run_up() {
+    let Some(server) = private_postgres() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let place = Place::parse(&server.database())
+        .unwrap()
+        .with_spool_in(dir.path());
+    // A call that waited on a server that does not answer would wait as long as TCP does
+    // (minutes to hours); each waits the bound, and a minute is room enough for a loaded
+    // host to notice the bound has passed.
+    let held_up = Duration::from_secs(60);
+    block_on(async {
+        let store = Store::open(&place).await.unwrap();
+        let run = store
+            .begin(&new_run(Kind::Stream, "jobs/a.toml", "lathe-a", None))
+            .await
+            .unwrap();
+        assert_eq!(run.kept, Kept::Database);
+        server.signal_all("STOP");
+        let asked = Instant::now();
+        let finished = store
+            .finish(&run, &Ending::new(Outcome::Completed))
+            .await
+            .unwrap();
+        let waited = asked.elapsed();
+        assert!(waited >= POSTGRES_TIMEOUT && waited < held_up, "{waited:?}");
+        let Kept::Spool { why, .. } = &finished.kept else {
+            panic!("{finished:?}");
+        };
+        assert!(why.contains("no answer within"), "{why}");
+        // A bridge that starts meanwhile opens its records within the bound, and its run
+        // begins in the spool straight away.
+        let asked = Instant::now();
+        let other = Store::open(&place).await.unwrap();
+        assert!(
+            other
+                .down()
+                .is_some_and(|why| why.contains("no answer within")),
+            "{:?}",
+            other.down()
+        );
+        let begun = other
+            .begin(&new_run(Kind::Plan, "jobs/b.toml", "lathe-b", None))
+            .await
+            .unwrap();
+        assert!(matches!(begun.kept, Kept::Spool { .. }));
+        assert!(
+            other
+                .finish(&begun, &Ending::new(Outcome::Completed))
+                .await
+                .unwrap()
+                .closed
+        );
+        assert!(asked.elapsed() < held_up, "{:?}", asked.elapsed());
+        server.signal_all("CONT");
+        store.close_connections().await;
+        other.close_connections().await;
+        let after = Store::open(&place).await.unwrap();
+        let uploaded = after.uploaded().unwrap().as_ref().unwrap();
+        assert_eq!(uploaded.runs.len(), 2, "{uploaded:?}");
+        for key in [&run.uid, &begun.uid] {
+            let runs = every_run(&after).await;
+            let run = runs.iter().find(|r| r.uid.as_ref() == Some(key)).unwrap();
+            assert_eq!(run.summary.outcome, Outcome::Completed);
+        }
+        after.close_connections().await;
+    });
+}
+
+#[test]
+fn a_postgresql_that_cannot_be_reached_nor_its_run_kept_in_the_spool_is_said_naming_both() {
+    let dead = dead_postgres_url();
+    let dir = tempfile::tempdir().unwrap();
+    // The data folder is a file: no spool can be made in it.
+    let data = util::write(dir.path(), "data", "not a folder\n");
+    let place = Place::parse(&dead).unwrap().with_spool_in(&data);
+    let spool = place.spool().unwrap().display().to_string();
+    let error = block_on(Store::open(&place)).unwrap_err().to_string();
+    assert!(error.contains(&dead) && error.contains(&spool), "{error}");
+}
+
+#[test]
+fn a_spool_that_cannot_be_read_is_said_left_as_it_is_and_runs_are_recorded_all_the_same() {
+    let Some(server) = postgres() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let place = Place::parse(&server.database())
+        .unwrap()
+        .with_spool_in(dir.path());
+    let spool = place.spool().unwrap().to_owned();
+    std::fs::create_dir_all(spool.parent().unwrap()).unwrap();
+    std::fs::write(&spool, "shopping list\n").unwrap();
+    block_on(async {
+        let store = Store::open(&place).await.unwrap();
+        let error = store.uploaded().unwrap().as_ref().unwrap_err().to_string();
+        assert!(error.contains(&spool.display().to_string()), "{error}");
+        let run = store
+            .begin(&new_run(Kind::Plan, "jobs/a.toml", "lathe-a", None))
+            .await
+            .unwrap();
+        assert_eq!(run.kept, Kept::Database);
+        assert!(
+            store
+                .finish(&run, &Ending::new(Outcome::Completed))
+                .await
+                .unwrap()
+                .closed
+        );
+        store.close_connections().await;
+    });
+    assert_eq!(std::fs::read_to_string(&spool).unwrap(), "shopping list\n");
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1160,7 +1699,8 @@ fn the_default_database_is_made_in_the_users_data_folder_on_first_use() {
 }
 
 #[test]
-fn a_database_that_cannot_be_written_refuses_the_run_unless_told_to_go_on_unrecorded() {
+fn a_database_that_cannot_be_written_nor_a_spool_keep_the_run_refuses_it_unless_told_to_go_on_unrecorded(
+) {
     let dir = tempfile::tempdir().unwrap();
     let short = short_of(&planned(dir.path()), dir.path());
     let link = dir.path().join("grbl");
@@ -1180,10 +1720,16 @@ fn a_database_that_cannot_be_written_refuses_the_run_unless_told_to_go_on_unreco
             log.as_os_str(),
         ];
         args.extend_from_slice(extra);
-        whirl_in(db, dir.path(), &args)
+        let mut command = whirl_command(db, dir.path());
+        // A PostgreSQL's spool is in the user's data folder: without a home there is none,
+        // and a run it cannot take is not kept anywhere.
+        if db.starts_with("postgres://") {
+            command.env_remove("HOME");
+        }
+        command.args(&args).output().expect("the whirl binary runs")
     };
     // A database that exists but is opened read-only (root writes any file, so the URL
-    // says it), and a PostgreSQL that is down.
+    // says it), and a PostgreSQL that is down with no spool to keep the run.
     let file = dir.path().join("runs.sqlite");
     let o = whirl_in(
         &file.display().to_string(),
@@ -1379,6 +1925,171 @@ fn a_database_that_is_one_of_the_runs_files_or_no_file_is_refused_before_anythin
         // Nothing written: every file as it was, no database, no program, no report.
         assert_eq!(contents(d), before, "{args:?} {db:?}");
     }
+}
+
+#[test]
+fn a_run_whose_postgresql_is_down_is_kept_in_the_spool_and_uploaded_by_the_next_whirl() {
+    let Some(server) = private_postgres() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let home = dir.path();
+    let db = server.database();
+    let shown = Place::parse(&db).unwrap().name();
+    // The schema made while it is up, as a shop's is.
+    assert!(list(&db, home, &[]).is_empty());
+    server.stop();
+    let program = dir.path().join("p.nc");
+    let job = util::example("double-start");
+    let o = whirl_in(
+        &db,
+        home,
+        &[
+            OsStr::new("plan"),
+            job.as_os_str(),
+            OsStr::new("-o"),
+            program.as_os_str(),
+        ],
+    );
+    // The run is not refused: it is recorded in the spool, and says so.
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(program.is_file());
+    let spool = home
+        .join(".local/share/whirl")
+        .join(whirl::records::spool::file_name(&db));
+    assert!(spool.is_file(), "{}", spool.display());
+    let said = stderr(&o);
+    assert!(
+        said.contains(&shown) && said.contains(&spool.display().to_string()),
+        "{said}"
+    );
+    // While it is down, the history cannot be read, and says which database.
+    let o = whirl_in(&db, home, &[OsStr::new("runs"), OsStr::new("list")]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains(&shown), "{}", stderr(&o));
+
+    server.start_again();
+    let o = whirl_in(
+        &db,
+        home,
+        &[OsStr::new("runs"), OsStr::new("list"), OsStr::new("--json")],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("uploaded") && stderr(&o).contains(&spool.display().to_string()),
+        "{}",
+        stderr(&o)
+    );
+    let runs: Vec<Value> = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(runs.len(), 1, "{runs:?}");
+    assert_eq!(
+        (&runs[0]["kind"], &runs[0]["outcome"]),
+        (&Value::from("plan"), &Value::from("completed"))
+    );
+    assert_eq!(runs[0]["host"], Process::current().host.as_str());
+    let run = show(&db, home, &runs[0]["id"]);
+    assert_eq!(
+        run["job_file"]["sha256"],
+        whirl::records::sha256_hex(&std::fs::read(&job).unwrap())
+    );
+    // Once: the next whirl finds nothing more to upload.
+    let o = whirl_in(
+        &db,
+        home,
+        &[OsStr::new("runs"), OsStr::new("list"), OsStr::new("--json")],
+    );
+    assert!(!stderr(&o).contains("uploaded"), "{}", stderr(&o));
+    assert_eq!(
+        serde_json::from_slice::<Vec<Value>>(&o.stdout)
+            .unwrap()
+            .len(),
+        1
+    );
+}
+
+#[test]
+fn runs_list_finds_a_machines_runs_across_the_hosts_of_a_shared_postgresql() {
+    let Some(server) = postgres() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let home = dir.path();
+    let db = server.database();
+    let since = Timestamp::now().to_text()[..19].to_owned();
+    // This host plans for two machines: the built-in simulator and the grblHAL lathe.
+    let job = util::example("double-start");
+    let grblhal = util::root().join("machine-profiles/grblhal-lathe.toml");
+    for (machine, out) in [(None, "sim.nc"), (Some(&grblhal), "grblhal.nc")] {
+        let out = dir.path().join(out);
+        let mut args = vec![
+            OsStr::new("plan"),
+            job.as_os_str(),
+            OsStr::new("-o"),
+            out.as_os_str(),
+        ];
+        if let Some(machine) = machine {
+            args.extend([OsStr::new("--machine"), machine.as_os_str()]);
+        }
+        let o = whirl_in(&db, home, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    // Another host's bridge streams on a grblHAL lathe of its own into the same database.
+    let here = Process::current();
+    let other = format!("{}-lathe-2", here.host);
+    let grblhal_name = "grblHAL XZC whirling lathe (lathe 2)";
+    block_on(async {
+        let store = Store::open(&Place::parse(&db).unwrap()).await.unwrap();
+        let mut run = new_run(Kind::Stream, "jobs/bolt.toml", grblhal_name, None);
+        run.process = Process {
+            host: other.clone(),
+            ..here.clone()
+        };
+        let recorded = store.begin(&run).await.unwrap();
+        store
+            .finish(&recorded, &Ending::new(Outcome::Completed))
+            .await
+            .unwrap();
+        store.close_connections().await;
+    });
+    // Both hosts' grblHAL runs, newest first, each with its host; not the simulator's.
+    let runs = list(&db, home, &["--machine", "GRBLHAL", "--since", &since]);
+    let found: Vec<(&str, &str)> = runs
+        .iter()
+        .map(|r| (r["host"].as_str().unwrap(), r["kind"].as_str().unwrap()))
+        .collect();
+    assert_eq!(
+        found,
+        [(other.as_str(), "stream"), (here.host.as_str(), "plan")],
+        "{runs:?}"
+    );
+    assert_eq!(list(&db, home, &["--since", &since]).len(), 3);
+    assert_eq!(
+        list(&db, home, &["--machine", "grblhal", "--host", "LATHE-2"]).len(),
+        1
+    );
+    let tomorrow = Timestamp(Timestamp::now().0 + 86_400_000).to_text()[..10].to_owned();
+    assert!(list(&db, home, &["--machine", "grblhal", "--since", &tomorrow]).is_empty());
+    // The table names each run's host.
+    let o = whirl_in(
+        &db,
+        home,
+        &[
+            OsStr::new("runs"),
+            OsStr::new("list"),
+            OsStr::new("--machine"),
+            OsStr::new("grblhal"),
+            OsStr::new("--since"),
+            OsStr::new(&since),
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let table = String::from_utf8_lossy(&o.stdout);
+    let lines: Vec<&str> = table.lines().collect();
+    assert!(lines[0].contains("HOST"), "{table}");
+    assert!(
+        lines[1].contains(&other) && lines[1].contains(grblhal_name),
+        "{table}"
+    );
+    assert!(lines[2].contains(&format!(" {} ", here.host)), "{table}");
+    assert_eq!(lines.len(), 3, "{table}");
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1660,7 +2371,7 @@ fn a_database_a_newer_whirl_has_migrated_further_is_refused_naming_it() {
             .unwrap();
         sqlx::raw_sql(
             "INSERT INTO _sqlx_migrations (version, description, success, checksum, \
-             execution_time) VALUES (3, 'from a newer whirl', TRUE, x'00', 0)",
+             execution_time) VALUES (99, 'from a newer whirl', TRUE, x'00', 0)",
         )
         .execute(&mut conn)
         .await
@@ -1671,7 +2382,7 @@ fn a_database_a_newer_whirl_has_migrated_further_is_refused_naming_it() {
     let o = whirl_in(&db, dir.path(), &[OsStr::new("runs"), OsStr::new("list")]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
-        stderr(&o).contains(&db) && stderr(&o).contains("migration 3"),
+        stderr(&o).contains(&db) && stderr(&o).contains("migration 99"),
         "{}",
         stderr(&o)
     );

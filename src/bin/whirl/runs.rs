@@ -13,6 +13,10 @@
 //!   ends as it would have. A machine already cutting never stops because an index is
 //!   down; the log keeps the run, and the next whirl that opens the database closes the
 //!   record from the log.
+//!
+//! A shop's PostgreSQL that cannot be reached is neither: the run is recorded in the
+//! spool on the host, with a warning that says so, and uploaded by the next whirl that
+//! opens the records and reaches the server (docs/records.md#the-spool).
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -25,8 +29,9 @@ use whirl::judge::dry_run::DryRunReport;
 use whirl::plan::Plan;
 use whirl::records::from_log::read_run;
 use whirl::records::{
-    Ending, FileSnapshot, Filter, Kind, LogPlace, NewRun, Outcome, Place, Process, ProgramId, Run,
-    RunId, RunMode, RunProvenance, RunSummary, Store, Timestamp,
+    Ending, FileSnapshot, Filter, Finished, Kept, Kind, LogPlace, NewRun, Outcome, Place, Process,
+    ProgramId, Recorded, Run, RunId, RunMode, RunProvenance, RunSummary, Store, Timestamp,
+    Uploaded,
 };
 use whirl::transport::{self, Link, Posted, StreamError};
 
@@ -45,6 +50,10 @@ pub(crate) enum RunsCommand {
         /// Only runs whose machine profile's name or file contains this (any case).
         #[arg(long)]
         machine: Option<String>,
+        /// Only runs on a host whose name contains this (any case): a shop's database
+        /// holds every bridge's runs.
+        #[arg(long)]
+        host: Option<String>,
         /// Only runs started at or after this UTC date or time: YYYY-MM-DD,
         /// YYYY-MM-DDTHH:MM or YYYY-MM-DDTHH:MM:SS.
         #[arg(long, value_parser = Timestamp::parse)]
@@ -99,6 +108,17 @@ fn open(db: Option<&str>, say: bool) -> Result<Open> {
         .enable_all()
         .build()?;
     let store = runtime.block_on(Store::open(&place))?;
+    match store.uploaded() {
+        Some(Ok(uploaded)) if say => say_uploaded(&store, uploaded),
+        Some(Ok(_)) | None => {}
+        Some(Err(e)) => warn(&format!(
+            "{e}: the runs kept in the spool {} stay there until a whirl that opens the \
+             records can upload them",
+            store
+                .spool()
+                .map_or(String::new(), |f| f.display().to_string())
+        )),
+    }
     match runtime.block_on(store.close_orphans(&Process::current())) {
         Ok(closed) if say => {
             for (id, outcome) in closed {
@@ -115,6 +135,27 @@ fn open(db: Option<&str>, say: bool) -> Result<Open> {
     Ok(Open { runtime, store })
 }
 
+/// Says on standard error which runs kept in the spool went to the database.
+fn say_uploaded(store: &Store, uploaded: &Uploaded) {
+    if uploaded.runs.is_empty() {
+        return;
+    }
+    let runs: Vec<String> = uploaded
+        .runs
+        .iter()
+        .map(|(spooled, id)| format!("{spooled} as run {id}"))
+        .collect();
+    let _ = writeln!(
+        std::io::stderr(),
+        "whirl: uploaded the runs kept in the spool {} to {}: {}",
+        store
+            .spool()
+            .map_or(String::new(), |f| f.display().to_string()),
+        store.place(),
+        runs.join(", ")
+    );
+}
+
 /// `whirl runs …`.
 pub(crate) fn runs(command: RunsCommand, recorder: &Recorder) -> Result<ExitCode> {
     let Open { runtime, store } = open(recorder.db.as_deref(), true)?;
@@ -122,6 +163,7 @@ pub(crate) fn runs(command: RunsCommand, recorder: &Recorder) -> Result<ExitCode
         RunsCommand::List {
             job,
             machine,
+            host,
             since,
             until,
             outcome,
@@ -134,6 +176,7 @@ pub(crate) fn runs(command: RunsCommand, recorder: &Recorder) -> Result<ExitCode
                 since,
                 until,
                 outcome,
+                host,
                 limit,
             };
             let runs = runtime.block_on(store.list(&filter))?;
@@ -195,7 +238,7 @@ fn how(run: &RunSummary) -> String {
 
 /// The runs as a table, one a line, each column as wide as its widest entry.
 fn table(runs: &[RunSummary]) -> Result<()> {
-    let mut rows: Vec<[String; 9]> = vec![[
+    let mut rows: Vec<[String; 10]> = vec![[
         "ID",
         "KIND",
         "HOW",
@@ -203,6 +246,7 @@ fn table(runs: &[RunSummary]) -> Result<()> {
         "STARTED (UTC)",
         "TOOK",
         "RESUME",
+        "HOST",
         "MACHINE",
         "JOB OR PROGRAM",
     ]
@@ -216,6 +260,7 @@ fn table(runs: &[RunSummary]) -> Result<()> {
             run.started_at.clone(),
             duration(run),
             run.resume_at.map_or("-".into(), |l| l.to_string()),
+            run.host.clone(),
             run.machine.clone().unwrap_or_else(|| "-".into()),
             run.job
                 .clone()
@@ -223,7 +268,7 @@ fn table(runs: &[RunSummary]) -> Result<()> {
                 .unwrap_or_else(|| "-".into()),
         ]);
     }
-    let widths: Vec<usize> = (0..9)
+    let widths: Vec<usize> = (0..10)
         .map(|c| rows.iter().map(|r| r[c].chars().count()).max().unwrap_or(0))
         .collect();
     for row in &rows {
@@ -233,7 +278,7 @@ fn table(runs: &[RunSummary]) -> Result<()> {
             // Numbers to the right, words to the left; the last column unpadded.
             match c {
                 0 | 5 | 6 => line.push_str(&format!("{}{cell}  ", " ".repeat(pad))),
-                8 => line.push_str(cell),
+                9 => line.push_str(cell),
                 _ => line.push_str(&format!("{cell}{}  ", " ".repeat(pad))),
             }
         }
@@ -249,9 +294,12 @@ fn show(run: &Run) -> Result<()> {
     say!(
         "started    {} on {} (pid {})",
         s.started_at,
-        run.host,
+        s.host,
         run.pid
     )?;
+    if let Some(uid) = &run.uid {
+        say!("key        {uid}")?;
+    }
     if let Some(ended) = &s.ended_at {
         say!("ended      {ended} ({})", duration(s))?;
     }
@@ -399,7 +447,7 @@ pub(crate) struct Recorder {
     provenance: Option<RunProvenance>,
     /// How the run ended, as the command noted it.
     noted: Option<Ending>,
-    open: Option<(Open, RunId, NewRun)>,
+    open: Option<(Open, Recorded, NewRun)>,
     /// When its record opened (about when its log's clock started).
     started: Option<Timestamp>,
 }
@@ -503,7 +551,10 @@ impl Recorder {
     /// What live telemetry says of the run beyond its log: its record, its job, its
     /// program's hash and what the program was planned from (after [`Recorder::begin`]).
     pub(crate) fn telemetry_context(&self, kind: &str) -> whirl::telemetry::RunContext {
-        let run = self.open.as_ref().map(|(_, id, run)| (*id, run));
+        let run = self
+            .open
+            .as_ref()
+            .map(|(_, recorded, run)| (recorded.id, run));
         whirl::telemetry::RunContext {
             kind: kind.to_owned(),
             record: run.map(|(id, _)| id),
@@ -557,12 +608,21 @@ impl Recorder {
         });
         self.started = Some(Timestamp::now());
         let opened = open(self.db.as_deref(), false).and_then(|open| {
-            let id = open.runtime.block_on(open.store.begin(&run))?;
-            Ok((open, id))
+            let recorded = open.runtime.block_on(open.store.begin(&run))?;
+            Ok((open, recorded))
         });
         match opened {
-            Ok((open, id)) => {
-                self.open = Some((open, id, run));
+            Ok((open, recorded)) => {
+                if let Kept::Spool { file, why } = &recorded.kept {
+                    warn(&format!(
+                        "{why}: this run is recorded in the spool {} (as its run {}), and \
+                         uploaded to {} by the next whirl that opens them and reaches them",
+                        file.display(),
+                        recorded.id,
+                        open.store.place()
+                    ));
+                }
+                self.open = Some((open, recorded, run));
                 Ok(())
             }
             Err(e) if self.allow_unrecorded => {
@@ -613,22 +673,33 @@ impl Recorder {
     /// is): a database that cannot take it is said on standard error, and changes nothing
     /// of the command's end.
     pub(crate) fn finish(&mut self, result: Result<ExitCode>) -> Result<ExitCode> {
-        let Some((open, id, run)) = self.open.take() else {
+        let Some((open, recorded, run)) = self.open.take() else {
             return result;
         };
+        let id = recorded.id;
         let ending = self.ending(&run, &result);
-        let closed = open.runtime.block_on(open.store.finish(id, &ending));
-        if let Err(e) = closed {
-            warn(&format!(
-                "{e}: run {id} stays open in the records until the next whirl that opens them \
+        let closed = open.runtime.block_on(open.store.finish(&recorded, &ending));
+        match closed {
+            Ok(Finished {
+                kept: Kept::Spool { file, why },
+                ..
+            }) if recorded.kept == Kept::Database => warn(&format!(
+                "{why}: the end of run {id} is kept in the spool {}, and uploaded to {} by the \
+                 next whirl that opens them and reaches them",
+                file.display(),
+                open.store.place()
+            )),
+            Ok(_) => {}
+            Err(e) => {
+                warn(&format!(
+                    "{e}: run {id} stays open in the records until the next whirl that opens them \
                  closes it {}",
-                run.log
-                    .as_ref()
-                    .map_or("as interrupted (it keeps no log)".into(), |l| format!(
-                        "from its log {}",
-                        l.path.display()
-                    ))
-            ));
+                    run.log.as_ref().map_or(
+                        "as interrupted (it keeps no log)".into(),
+                        |l| format!("from its log {}", l.path.display())
+                    )
+                ))
+            }
         }
         open.runtime.block_on(open.store.close_connections());
         result
@@ -692,6 +763,7 @@ mod tests {
             machine: None,
             transport: Some("serial".into()),
             mode: RunMode::Stream,
+            host: "lathe-1".into(),
             duration_s: whirl::records::duration_s(start, end, now),
             resume_at: None,
             reason: None,

@@ -3,7 +3,9 @@
 //! loopback without an access token. Its runs are recorded in the run records (`--db`,
 //! `WHIRL_DB`, else the default): a database it cannot open refuses the start unless
 //! `--allow-unrecorded`, and the records a killed console left running are closed when it
-//! starts again.
+//! starts again. A shop's PostgreSQL that cannot be reached keeps the console's runs in
+//! its spool on the host, uploaded when each run starts and every
+//! [`UPLOAD_EVERY`] while the console serves, once the server answers.
 
 use anyhow::{Context, Result};
 use std::future::IntoFuture;
@@ -28,6 +30,11 @@ use whirl::telemetry::Telemetry;
 use whirl::transport::Command;
 
 use crate::terminal::say;
+
+/// How often a console whose records have a spool uploads what it keeps: a console that
+/// serves for weeks sends the runs it kept while the shop's database was down soon after
+/// it is back, not only when a run starts.
+const UPLOAD_EVERY: Duration = Duration::from_secs(60);
 
 /// How long a signal waits for the runs it stops to stand.
 const STOP_WAIT: Duration = Duration::from_secs(60);
@@ -95,6 +102,11 @@ pub(crate) fn run(
         .build()?;
     runtime.block_on(async move {
         console.records = records(db, allow_unrecorded).await?;
+        if let Some(store) = console.records.as_ref().map(|r| r.store.clone()) {
+            if store.spool().is_some() {
+                tokio::spawn(upload_every(store));
+            }
+        }
         let console = Arc::new(console);
         whirl::console::remote::take_commands(
             &console,
@@ -204,6 +216,38 @@ pub(crate) fn shop(
     })
 }
 
+/// Uploads what the spool keeps every [`UPLOAD_EVERY`], saying on standard error what
+/// went, and why nothing could when that changes (not once a minute while the database is
+/// down).
+async fn upload_every(store: Store) {
+    let mut ticks = tokio::time::interval(UPLOAD_EVERY);
+    ticks.tick().await;
+    let mut said = None;
+    loop {
+        ticks.tick().await;
+        match store.upload().await {
+            Ok(uploaded) => {
+                said = None;
+                for (spooled, id) in uploaded.runs {
+                    eprintln!(
+                        "whirl serve: run {spooled} kept in the spool uploaded to {} as run {id}",
+                        store.place()
+                    );
+                }
+            }
+            Err(e) => {
+                let now = e.to_string();
+                if said.as_ref() != Some(&now) {
+                    eprintln!(
+                        "warning: {now}: the runs kept in the spool stay there until it answers"
+                    );
+                    said = Some(now);
+                }
+            }
+        }
+    }
+}
+
 /// SIGINT and SIGTERM, as `whirl serve` hears them.
 struct Signals {
     interrupt: tokio::signal::unix::Signal,
@@ -297,6 +341,30 @@ async fn records(db: Option<&str>, allow_unrecorded: bool) -> Result<Option<Reco
             ))
         }
     };
+    match records.store.uploaded() {
+        Some(Ok(uploaded)) => {
+            for (spooled, id) in &uploaded.runs {
+                eprintln!(
+                    "whirl serve: run {spooled} kept in the spool uploaded to {} as run {id}",
+                    records.store.place()
+                );
+            }
+        }
+        Some(Err(e)) => {
+            eprintln!("warning: {e}: the runs kept in the spool stay there until it answers")
+        }
+        None => {}
+    }
+    if let Some(why) = records.store.down() {
+        eprintln!(
+            "warning: {why}: the console's runs are kept in the spool {} until the run \
+             records answer",
+            records
+                .store
+                .spool()
+                .map_or(String::new(), |f| f.display().to_string())
+        );
+    }
     match records.store.close_orphans(&Process::current()).await {
         Ok(closed) => {
             for (id, outcome) in closed {

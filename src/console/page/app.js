@@ -288,7 +288,8 @@ function render() {
   $("run-stream").disabled = running;
   showLock();
   if (!v) return;
-  const name = v.record ? "record " + v.record : "run " + v.id + " (unrecorded)";
+  const name = v.record ? "record " + v.record :
+    "run " + v.id + (v.spooled ? " (its record in the spool)" : " (unrecorded)");
   $("run-title").textContent = name + ": " + v.job + " on " + v.machine + " over " +
     v.transport + " at " + v.time_scale + "×" + (v.resumed_at ? ", resumed at line " + v.resumed_at : "") +
     (running ? (standing ? " (held)" : " (running)") : " (ended)");
@@ -430,7 +431,7 @@ async function history() {
       row.dataset.run = r.id;
       const how = { "plan": "nothing (a plan)", "dry-run": "simulator (dry run)", "stream": "MACHINE (stream)" }[r.mode];
       const cells = [r.id, r.kind, how, r.outcome, r.started_at.replace("T", " ").replace("Z", ""),
-        took(r), r.machine || "–", r.job || r.program || "–", r.transport || "–",
+        took(r), r.machine || "–", r.host, r.job || r.program || "–", r.transport || "–",
         r.resume_at === null ? "–" : r.resume_at, r.reason || ""];
       cells.forEach((c, i) => {
         const cell = row.insertCell();
