@@ -20,9 +20,8 @@ mod console {
 #[allow(dead_code)]
 mod mosquitto;
 
-use console::http::{request, Answer};
+use console::http::{self, request, Answer};
 use console::webdriver::Session;
-use std::io::{BufRead, BufReader};
 use std::net::{SocketAddr, TcpListener};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -82,16 +81,7 @@ impl Serve {
             .stderr(std::fs::File::create(dir.path().join("serve.err")).unwrap())
             .spawn()
             .unwrap();
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        let addr = line
-            .split("http://")
-            .nth(1)
-            .and_then(|rest| rest.split('/').next())
-            .and_then(|a| a.parse().ok())
-            .unwrap_or_else(|| panic!("whirl serve said no address: {line:?}"));
+        let addr = http::listening(&mut child);
         let session = request(addr, "GET", "/api/session", &[], None).json();
         let key = session["page_key"].as_str().unwrap().to_owned();
         Serve {

@@ -925,14 +925,7 @@ fn run(row: &AnyRow, notes: Vec<Note>) -> Result<Run, sqlx::Error> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn block_on<F: std::future::Future>(future: F) -> F::Output {
-        tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()
-            .unwrap()
-            .block_on(future)
-    }
+    use crate::records::block_on;
 
     #[test]
     fn every_sqlite_connection_waits_for_another_writer() {

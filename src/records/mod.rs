@@ -525,6 +525,16 @@ pub struct Run {
     pub notes: Vec<Note>,
 }
 
+/// Runs `future` to its end on a runtime of its own: the store's tests are synchronous.
+#[cfg(test)]
+pub(crate) fn block_on<F: std::future::Future>(future: F) -> F::Output {
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap()
+        .block_on(future)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -604,6 +604,7 @@ impl Store {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::records::block_on;
     use crate::records::Kind;
 
     #[test]
@@ -653,14 +654,6 @@ mod tests {
             here.join("shop.sqlite")
         );
         assert_eq!(file("postgres://whirl@127.0.0.1/shop"), None);
-    }
-
-    fn block_on<F: std::future::Future>(future: F) -> F::Output {
-        tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()
-            .unwrap()
-            .block_on(future)
     }
 
     #[test]

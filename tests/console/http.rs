@@ -196,3 +196,18 @@ fn a_plain_request_names_its_address_and_carries_no_origin_or_cookie() {
     }
     assert_eq!(answer.json(), serde_json::json!({}));
 }
+
+/// The address a `whirl serve` says on its first line of standard output that it listens
+/// on (`… at http://ADDRESS/ …`).
+pub fn listening(child: &mut std::process::Child) -> SocketAddr {
+    use std::io::BufRead;
+    let mut line = String::new();
+    std::io::BufReader::new(child.stdout.take().expect("whirl serve's stdout piped"))
+        .read_line(&mut line)
+        .unwrap();
+    line.split("http://")
+        .nth(1)
+        .and_then(|rest| rest.split('/').next())
+        .and_then(|a| a.parse().ok())
+        .unwrap_or_else(|| panic!("whirl serve said no address: {line:?}"))
+}

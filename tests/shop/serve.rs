@@ -1,7 +1,6 @@
 //! A shop's `whirl serve` processes for the shop tests and the shop benchmark: bridges
 //! (one machine each, reporting to the broker) and the overview.
 
-use std::io::{BufRead, BufReader};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -40,16 +39,7 @@ impl Serve {
             .stderr(Stdio::null())
             .spawn()
             .unwrap();
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        let addr = line
-            .split("http://")
-            .nth(1)
-            .and_then(|rest| rest.split('/').next())
-            .and_then(|a| a.parse().ok())
-            .unwrap_or_else(|| panic!("whirl serve said no address: {line:?}"));
+        let addr = http::listening(&mut child);
         let key = request(addr, "GET", "/api/session", &[], None).json()["page_key"]
             .as_str()
             .unwrap()
