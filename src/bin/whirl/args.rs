@@ -203,6 +203,12 @@ pub(crate) enum Command {
         /// (docs/shop.md). A broker that cannot be reached never slows or stops a run.
         #[arg(long, value_name = "URL")]
         mqtt: Option<String>,
+        /// Serve every machine the console runs as OPC UA for Machine Tools at
+        /// opc.tcp://HOST:PORT (HOST an address of this host; port 0: any free one,
+        /// printed at start), in place of the profiles' `[telemetry] opcua` (docs/opcua.md).
+        /// Beyond loopback the profiles' `opcua_security` and `opcua_user` must secure it.
+        #[arg(long, value_name = "HOST:PORT")]
+        opcua: Option<String>,
     },
     /// Read executed-path logs.
     Log {

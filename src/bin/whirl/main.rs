@@ -188,6 +188,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             token,
             allow_hosts,
             mqtt,
+            opcua,
         } => serve::run(
             &machines,
             &jobs,
@@ -198,7 +199,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             },
             cli.db.as_deref(),
             cli.allow_unrecorded,
-            mqtt.as_deref(),
+            (mqtt.as_deref(), opcua.as_deref()),
         ),
         Command::Runs { command } => runs::runs(command, record),
         Command::Log { command } => {
