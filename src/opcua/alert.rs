@@ -53,10 +53,9 @@ impl AlertEvent {
         condition.condition_name = UAString::from(format!("Alarm {}", alert.error_code));
         condition.retain = alert.active;
         condition.enabled_state.id = true;
-        condition.enabled_state.base.value = LocalizedText::from("Enabled");
+        // `ActiveState/Id` is what a client reads: async-opcua 0.19 answers a two-state
+        // variable's own value (its text) empty.
         base.active_state.id = alert.active;
-        base.active_state.base.value =
-            LocalizedText::from(if alert.active { "Active" } else { "Inactive" });
         AlertEvent {
             base,
             own_namespace_index: machine_tool,

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use opcua::server::diagnostics::NamespaceMetadata;
 use opcua::server::node_manager::memory::{simple_node_manager, SimpleNodeManager};
 use opcua::server::{ServerBuilder, ServerHandle, SubscriptionCache};
-use opcua::types::{DataValue, DateTime, NodeId, ObjectId};
+use opcua::types::{DataValue, DateTime};
 use tokio::sync::mpsc;
 
 use crate::config::opcua::{OpcUaSettings, Security};
@@ -138,6 +138,13 @@ impl OpcUa {
             ));
         }
         let builder = security::secure(builder, settings, pki);
+        // The server's runtime, made here: building the server spawns its samplers on it.
+        // Its tasks run once the thread drives it.
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .map_err(OpcUaError::Thread)?;
+        let entered = runtime.enter();
         let (server, handle) = builder.build().map_err(OpcUaError::Server)?;
         let index = |uri: &str| {
             handle
@@ -184,6 +191,13 @@ impl OpcUa {
                 tool,
             });
         }
+        let listener =
+            tokio::net::TcpListener::from_std(listener).map_err(|source| OpcUaError::Listen {
+                key: key.into(),
+                address,
+                source,
+            })?;
+        drop(entered);
         let (inputs, receiver) = mpsc::channel(INPUTS);
         let serving = Serving {
             machines: served,
@@ -195,18 +209,7 @@ impl OpcUa {
         let thread = std::thread::Builder::new()
             .name("whirl-opcua".into())
             .spawn(move || {
-                let runtime = tokio::runtime::Builder::new_current_thread()
-                    .enable_all()
-                    .build()
-                    .expect("a runtime of one thread builds");
                 runtime.block_on(async move {
-                    let listener = match tokio::net::TcpListener::from_std(listener) {
-                        Ok(listener) => listener,
-                        Err(e) => {
-                            tracing::error!("opcua: the listener cannot be used: {e}");
-                            return;
-                        }
-                    };
                     let server = tokio::spawn(server.run_with(listener));
                     serving.follow(receiver).await;
                     if let Ok(Err(e)) = server.await {
@@ -305,14 +308,14 @@ impl Serving {
             if let Err(status) = self.manager.set_values(&self.subscriptions, values) {
                 tracing::warn!("opcua: {}: a value was not written ({status})", served.name);
             }
+            // From Messages; async-opcua hands it to the Server object's subscribers too.
             let messages = served.nodes.messages();
-            let server: NodeId = ObjectId::Server.into();
             for alert in alerts {
                 let event =
                     AlertEvent::new(&alert, &served.name, &messages, self.machine_tool, now);
                 let event: &dyn opcua::nodes::Event = &event;
                 self.subscriptions
-                    .notify_events([(event, &messages), (event, &server)].into_iter());
+                    .notify_events(std::iter::once((event, &messages)));
             }
         }
     }

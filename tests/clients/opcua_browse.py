@@ -11,10 +11,12 @@ as an MES would, by the standards' names (docs/opcua.md):
   `Production`'s active program and job, by their BrowsePaths in the MachineTool, DI and IA
   namespaces.
 
-With --watch it then subscribes to the values' changes and to AlertType events from
-`Notification/Messages`, prints one line `{"ready": true}` once subscribed, and follows
+With --watch it then subscribes to the values' changes and, in a subscription of its
+own, to AlertType events from `Notification/Messages` (in one subscription with the data
+changes, async-opcua 0.19 delivered none of them after the first event), prints one line
+`{"ready": true}` once subscribed, and follows
 until the job's RunsCompleted reaches --until-runs, --until-alerts alerts came and the
-active program's state is --until-state (or 120 s pass: "timeout" says so).
+active program's state is --until-state (or 240 s pass: "timeout" says so).
 
 It prints one JSON object (on one line) to stdout and exits 0:
 
@@ -63,7 +65,8 @@ def plain(value):
 
 
 class Follow:
-    """The subscription's handler: every change of every watched value, every event."""
+    """The subscription's handler: every change of every watched value, every event. Its
+    methods are coroutines, so that asyncua calls them on the loop that waits for them."""
 
     def __init__(self, names):
         self.names = names
@@ -71,15 +74,18 @@ class Follow:
         self.events = []
         self.changed = asyncio.Event()
 
-    def datachange_notification(self, node, val, data):
-        self.changes[self.names[node.nodeid]].append(plain(val))
+    async def datachange_notification(self, node, val, data):
+        name = self.names.get(node.nodeid)
+        if name is None:
+            return  # async-opcua 0.19 also sends the event item a data change: not ours
+        self.changes[name].append(plain(val))
         self.changed.set()
 
-    def event_notification(self, event):
+    async def event_notification(self, event):
         fields = event.get_event_props_as_fields_dict()
         seen = {}
-        for name in ("ErrorCode", "Message", "Severity", "SourceName", "ActiveState",
-                     "ActiveState/Id", "Retain", "EventType"):
+        for name in ("ErrorCode", "Message", "Severity", "SourceName", "ActiveState/Id",
+                     "Retain", "EventType"):
             if name in fields:
                 seen[name] = plain(fields[name].Value)
         self.events.append(seen)
@@ -109,6 +115,47 @@ async def connect(args):
                                   mode=mode)
     await client.connect()
     return client
+
+
+def parameters():
+    """A subscription publishing every 50 ms, with a keep-alive each second."""
+    return ua.CreateSubscriptionParameters(
+        RequestedPublishingInterval=50, RequestedLifetimeCount=300,
+        RequestedMaxKeepAliveCount=20, MaxNotificationsPerPublish=0,
+        PublishingEnabled=True, Priority=0)
+
+
+def alert_filter(alert_type, mt):
+    """The fields an MES reads of an alert, AlertType's and its supertypes', of events of
+    type AlertType (OfType). asyncua's default filter does not suit async-opcua 0.19: its
+    where clause compares EventType with InList, which async-opcua does not evaluate for
+    NodeIds (nothing passes), and it selects ConditionId with no BrowsePath, which
+    async-opcua leaves out of the fields instead of answering null (the fields after it
+    would shift)."""
+    base = ua.NodeId(ua.ObjectIds.BaseEventType)
+    condition = ua.NodeId(ua.ObjectIds.ConditionType)
+    alarm = ua.NodeId(ua.ObjectIds.AlarmConditionType)
+    fields = [
+        (base, [(0, "EventType")]),
+        (base, [(0, "Message")]),
+        (base, [(0, "Severity")]),
+        (base, [(0, "SourceName")]),
+        (alert_type.nodeid, [(mt, "ErrorCode")]),
+        (condition, [(0, "Retain")]),
+        (alarm, [(0, "ActiveState"), (0, "Id")]),
+    ]
+    evfilter = ua.EventFilter()
+    for type_id, path in fields:
+        operand = ua.SimpleAttributeOperand()
+        operand.TypeDefinitionId = type_id
+        operand.BrowsePath = [ua.QualifiedName(name, ns) for ns, name in path]
+        operand.AttributeId = ua.AttributeIds.Value
+        evfilter.SelectClauses.append(operand)
+    of_type = ua.ContentFilterElement()
+    of_type.FilterOperator = ua.FilterOperator.OfType
+    of_type.FilterOperands = [ua.LiteralOperand(Value=ua.Variant(alert_type.nodeid))]
+    evfilter.WhereClause.Elements.append(of_type)
+    return evfilter
 
 
 async def main():
@@ -206,12 +253,15 @@ async def follow(client, args):
         return out
 
     handler = Follow({node.nodeid: name for name, node in nodes.items()})
-    subscription = await client.create_subscription(50, handler)
+    subscription = await client.create_subscription(parameters(), handler)
     await subscription.subscribe_data_change(list(nodes.values()), queuesize=1000,
                                              sampling_interval=0)
     messages = await child(f"{mt}:Notification", f"{mt}:Messages")
     alert_type = client.get_node(ua.NodeId(39, mt))
-    await subscription.subscribe_events(messages, alert_type, queuesize=1000)
+    alerts = await client.create_subscription(parameters(), handler)  # of its own: see above
+    await alerts.subscribe_events(messages, alert_type,
+                                        evfilter=alert_filter(alert_type, mt),
+                                        queuesize=1000)
     print(json.dumps({"ready": True}), flush=True)
 
     def done():
@@ -221,7 +271,7 @@ async def follow(client, args):
                 and len(handler.events) >= args.until_alerts
                 and (args.until_state is None or (states and states[-1] == args.until_state)))
 
-    deadline = time.monotonic() + 120
+    deadline = time.monotonic() + 240
     while not done():
         left = deadline - time.monotonic()
         if left <= 0:
@@ -233,6 +283,7 @@ async def follow(client, args):
         except asyncio.TimeoutError:
             pass
     await subscription.delete()
+    await alerts.delete()
     out["changes"] = handler.changes
     out["events"] = handler.events
     out["final"] = await read_all()
