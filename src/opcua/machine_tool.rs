@@ -422,7 +422,7 @@ mod tests {
             message: "Δ guard: overcut".into(),
             active: true,
         };
-        assert_eq!(bridge.alerts, [raised.clone()]);
+        assert_eq!(bridge.alerts, std::slice::from_ref(&raised));
         // The run ends short, the alarm stays on the lamp until the next run clears it.
         let v = bridge.feed(end(false)).clone();
         assert_eq!(

@@ -138,7 +138,8 @@ impl Telemetry {
                 let mut closed = runtime.block_on(publish(
                     &settings,
                     identity,
-                    (receiver, observer.as_deref()),
+                    receiver,
+                    observer.as_ref(),
                     closing,
                 ));
                 closed.lost = lost.load(Ordering::Relaxed);
@@ -313,7 +314,8 @@ async fn until(at: Option<Instant>) {
 async fn publish(
     settings: &TelemetrySettings,
     identity: Identity,
-    (mut inputs, observer): (mpsc::Receiver<Input>, Option<&(dyn Fn(&Out) + Send)>),
+    mut inputs: mpsc::Receiver<Input>,
+    observer: Option<&Observer>,
     mut closing: oneshot::Receiver<()>,
 ) -> Closed {
     let broker = settings.broker().expect("telemetry settings are validated");
