@@ -15,8 +15,9 @@ With --watch it then subscribes to the values' changes and, in a subscription of
 own, to AlertType events from `Notification/Messages` (in one subscription with the data
 changes, async-opcua 0.19 delivered none of them after the first event), prints one line
 `{"ready": true}` once subscribed, and follows
-until the job's RunsCompleted reaches --until-runs, --until-alerts alerts came and the
-active program's state is --until-state (or 240 s pass: "timeout" says so).
+until the job's RunsCompleted reaches --until-runs, the active program's state is
+--until-state (both as read) and --until-alerts alerts came (or 240 s pass: "timeout"
+says so). "changes" are the values' changes as the subscription gave them by then.
 
 It prints one JSON object (on one line) to stdout and exits 0:
 
@@ -264,22 +265,24 @@ async def follow(client, args):
                                         queuesize=1000)
     print(json.dumps({"ready": True}), flush=True)
 
-    def done():
-        runs = handler.changes["RunsCompleted"]
-        states = handler.changes["ProgramState"]
-        return ((runs[-1] if runs else 0) >= args.until_runs
+    async def done():
+        # The values as read (a subscriber may get the last change late: docs/opcua.md),
+        # the alerts as they came.
+        runs = await nodes["RunsCompleted"].read_value()
+        state = plain(await nodes["ProgramState"].read_value())
+        return (runs >= args.until_runs
                 and len(handler.events) >= args.until_alerts
-                and (args.until_state is None or (states and states[-1] == args.until_state)))
+                and (args.until_state is None or state == args.until_state))
 
     deadline = time.monotonic() + 240
-    while not done():
+    while not await done():
         left = deadline - time.monotonic()
         if left <= 0:
             out["timeout"] = True
             break
         handler.changed.clear()
         try:
-            await asyncio.wait_for(handler.changed.wait(), left)
+            await asyncio.wait_for(handler.changed.wait(), min(left, 0.2))
         except asyncio.TimeoutError:
             pass
     await subscription.delete()

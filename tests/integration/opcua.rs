@@ -300,24 +300,29 @@ fn an_mes_follows_a_machines_runs_and_alarm_as_opc_40501_says() {
         went_through(&changes["ChannelState"]),
         ints(vec![2, 0, 2, 0, 2, 0, 1])
     );
-    assert_eq!(
-        went_through(&changes["ProgramState"]),
-        [
-            "Initializing",
-            "Running",
-            "Ended",
-            "Running",
-            "Ended",
-            "Running",
-            "Interrupted",
-            "Aborted"
-        ]
-        .map(Value::from)
-    );
-    assert_eq!(
-        went_through(&changes["JobState"]),
-        went_through(&changes["ProgramState"])
-    );
+    // The program's and the job's state machines; the last change, Aborted, may reach a
+    // subscriber late (docs/opcua.md), and is read.
+    for state in ["ProgramState", "JobState"] {
+        let mut states = went_through(&changes[state]);
+        if states.last() == Some(&Value::from("Aborted")) {
+            states.pop();
+        }
+        assert_eq!(
+            states,
+            [
+                "Initializing",
+                "Running",
+                "Ended",
+                "Running",
+                "Ended",
+                "Running",
+                "Interrupted"
+            ]
+            .map(Value::from),
+            "{state}"
+        );
+        assert_eq!(seen["final"][state], "Aborted", "{state}");
+    }
     // The runs that completed are counted; the job is the job file all three ran.
     assert_eq!(went_through(&changes["RunsCompleted"]), ints(vec![0, 1, 2]));
     assert_eq!(
