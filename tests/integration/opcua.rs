@@ -121,8 +121,13 @@ impl Drop for Serve {
 }
 
 /// `whirl serve args…` that must refuse to start: its standard error, once it has ended.
-fn serve_refused(dir: &Path, args: &[&OsStr]) -> String {
-    let child = Command::new(env!("CARGO_BIN_EXE_whirl"))
+/// `homeless`: without HOME and XDG_DATA_HOME.
+fn serve_refused(dir: &Path, args: &[&OsStr], homeless: bool) -> String {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_whirl"));
+    if homeless {
+        command.env_remove("HOME").env_remove("XDG_DATA_HOME");
+    }
+    let child = command
         .arg("--db")
         .arg(dir.join("runs.sqlite"))
         .args(["serve", "--listen", "127.0.0.1:0", "--jobs"])
@@ -153,11 +158,26 @@ fn serve_refused(dir: &Path, args: &[&OsStr]) -> String {
 
 /// The built-in simulator's profile with `telemetry` as its `[telemetry]`.
 fn profile(dir: &Path, telemetry: &str) -> std::path::PathBuf {
+    named_profile(dir, "lathe", telemetry)
+}
+
+/// The same, written to `dir/NAME.toml` and named NAME.
+fn named_profile(dir: &Path, name: &str, telemetry: &str) -> std::path::PathBuf {
     let sim = std::fs::read_to_string(util::root().join("machine-profiles/sim.toml")).unwrap();
+    let renamed: String = sim
+        .lines()
+        .map(|line| {
+            if line.starts_with("name = ") {
+                format!("name = \"{name}\"\n")
+            } else {
+                format!("{line}\n")
+            }
+        })
+        .collect();
     util::write(
         dir,
-        "lathe.toml",
-        &format!("{sim}\n[telemetry]\n{telemetry}\n"),
+        &format!("{name}.toml"),
+        &format!("{renamed}\n[telemetry]\n{telemetry}\n"),
     )
 }
 
@@ -483,7 +503,7 @@ fn a_secured_server_trusts_a_client_once_the_operator_moves_its_certificate() {
 #[test]
 fn an_unsafe_or_unusable_opcua_address_is_refused_before_anything_listens() {
     let dir = tempfile::tempdir().unwrap();
-    let refused = |args: &[&OsStr]| serve_refused(dir.path(), args);
+    let refused = |args: &[&OsStr]| serve_refused(dir.path(), args, false);
     // Beyond loopback without a login: refused naming the flag and the key.
     let stderr = refused(&[OsStr::new("--opcua"), OsStr::new("0.0.0.0:0")]);
     assert!(
@@ -512,4 +532,33 @@ fn an_unsafe_or_unusable_opcua_address_is_refused_before_anything_listens() {
         stderr.contains("--opcua") && stderr.contains("cannot listen"),
         "{stderr}"
     );
+    // Two machines on one server, secured otherwise.
+    let open = named_profile(dir.path(), "lathe-a", "opcua = \"127.0.0.1:0\"");
+    let login = named_profile(
+        dir.path(),
+        "lathe-b",
+        "opcua = \"127.0.0.1:0\"\nopcua_user = \"mes\"\nopcua_password = \"pw\"",
+    );
+    let stderr = refused(&[
+        OsStr::new("--machine"),
+        open.as_os_str(),
+        OsStr::new("--machine"),
+        login.as_os_str(),
+    ]);
+    assert!(
+        stderr.contains("lathe-b") && stderr.contains("secured alike"),
+        "{stderr}"
+    );
+    // A secured server with no folder named and no home to keep its certificate in.
+    let signed = profile(
+        dir.path(),
+        "opcua = \"127.0.0.1:0\"\nopcua_security = \"sign\"\nopcua_user = \"mes\"\n\
+         opcua_password = \"pw\"",
+    );
+    let stderr = serve_refused(
+        dir.path(),
+        &[OsStr::new("--machine"), signed.as_os_str()],
+        true,
+    );
+    assert!(stderr.contains("opcua_pki"), "{stderr}");
 }
