@@ -88,6 +88,7 @@ impl OpcUa {
     ) -> Result<OpcUa, OpcUaError> {
         let pki = match (&settings.pki, settings.security) {
             (Some(pki), _) => pki.clone(),
+            // An unsecured server keeps no certificate: no folder is used.
             (None, Security::None) => std::path::PathBuf::new(),
             (None, _) => security::default_pki(
                 std::env::var_os("XDG_DATA_HOME").as_deref(),
@@ -100,18 +101,10 @@ impl OpcUa {
                     .into(),
             })?,
         };
-        let listener =
-            std::net::TcpListener::bind(settings.address).map_err(|source| OpcUaError::Listen {
+        let (listener, address) =
+            listen(settings.address).map_err(|source| OpcUaError::Listen {
                 key: key.into(),
                 address: settings.address,
-                source,
-            })?;
-        let address = listener.local_addr().map_err(OpcUaError::Thread)?;
-        listener
-            .set_nonblocking(true)
-            .map_err(|source| OpcUaError::Listen {
-                key: key.into(),
-                address,
                 source,
             })?;
         let host = crate::records::Process::current().host;
@@ -251,6 +244,14 @@ impl OpcUa {
         let _ = self.thread.join();
         self.lost.load(Ordering::Relaxed)
     }
+}
+
+/// A non-blocking listener on `address`, and the address it got (its port, for port 0).
+fn listen(address: SocketAddr) -> std::io::Result<(std::net::TcpListener, SocketAddr)> {
+    let listener = std::net::TcpListener::bind(address)?;
+    listener.set_nonblocking(true)?;
+    let address = listener.local_addr()?;
+    Ok((listener, address))
 }
 
 impl Feed {

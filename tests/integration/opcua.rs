@@ -158,7 +158,12 @@ fn serve_refused(dir: &Path, args: &[&OsStr], homeless: bool) -> String {
 
 /// The built-in simulator's profile with `telemetry` as its `[telemetry]`.
 fn profile(dir: &Path, telemetry: &str) -> std::path::PathBuf {
-    named_profile(dir, "lathe", telemetry)
+    let sim = std::fs::read_to_string(util::root().join("machine-profiles/sim.toml")).unwrap();
+    util::write(
+        dir,
+        "lathe.toml",
+        &format!("{sim}\n[telemetry]\n{telemetry}\n"),
+    )
 }
 
 /// The same, written to `dir/NAME.toml` and named NAME.
