@@ -39,6 +39,7 @@
 //! - [`judge`]: the swept-volume measurement, the simulator and dry runs.
 //! - [`records`]: every run recorded in a database (SQLite or PostgreSQL).
 //! - [`telemetry`]: the machine's live state published on the shop's MQTT broker.
+//! - [`opcua`]: the machine served to the shop's MES as OPC UA for Machine Tools.
 //! - [`console`]: `whirl serve`, the operator's web console.
 //! - [`papers`]: the founding papers' geometry reproduced, outside the data flow: it checks
 //!   the measurement engine's methods and backs `whirl sweep`.
@@ -76,6 +77,7 @@ pub mod console;
 pub mod geometry;
 pub mod judge;
 pub mod log;
+pub mod opcua;
 pub mod papers;
 pub mod plan;
 pub mod post;

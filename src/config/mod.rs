@@ -7,7 +7,9 @@
 //! - [`connection`]: a profile's `[connection]`: how the bridge reaches the machine.
 //! - [`eds`]: a CANopen drive's electronic data sheet (CiA 306), which a CAN connection's
 //!   drives are checked against.
-//! - [`telemetry`]: a profile's `[telemetry]`: the MQTT broker a bridge reports to.
+//! - [`telemetry`]: a profile's `[telemetry]`: the MQTT broker a bridge reports to, the
+//!   OPC UA server it serves, or both.
+//! - [`opcua`]: the OPC UA server's address, security and login, checked.
 //! - [`provenance`]: what a program was planned from (the files' hashes, Δ, the angle and
 //!   the feed), as its header says it.
 
@@ -15,6 +17,7 @@ pub mod connection;
 pub mod eds;
 pub mod job;
 pub mod machine;
+pub mod opcua;
 pub mod provenance;
 pub mod telemetry;
 #[cfg(test)]

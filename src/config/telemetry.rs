@@ -1,9 +1,13 @@
-//! Where a bridge publishes its machine's live state: the `[telemetry]` table of a machine
-//! profile (or the command line's `--mqtt`).
+//! Where a bridge reports its machine's live state: the `[telemetry]` table of a machine
+//! profile (or the command line's `--mqtt` and `whirl serve --opcua`).
 //!
 //! A shop's machines report to one MQTT broker, under one topic prefix, each under its own
-//! name: `whirl/lathe-3/state`. The table says where the broker is, how to log in and how
-//! the bridge keeps its messages while the broker is away; `crate::telemetry` publishes.
+//! name: `whirl/lathe-3/state`; a shop's MES may instead (or as well) read each machine as
+//! OPC UA for Machine Tools from the bridge's own OPC UA server. The table says where the
+//! broker is, how to log in and how the bridge keeps its messages while the broker is
+//! away (`crate::telemetry` publishes), and where the OPC UA server listens, how it secures
+//! its messages and who may log in (`crate::opcua` serves, [`crate::config::opcua`]
+//! checks). A table names `mqtt`, `opcua` or both.
 //!
 //! ```
 //! use whirl::config::telemetry::TelemetrySettings;
@@ -14,16 +18,22 @@
 //!     machine = "Lathe 3"
 //!     user = "lathe3"
 //!     password = "secret"
+//!     opcua = "127.0.0.1:4840"
 //!     "#,
 //! )
 //! .unwrap();
 //! settings.validate().unwrap();
-//! let broker = settings.broker().unwrap();
+//! let broker = settings.broker().unwrap().unwrap();
 //! assert_eq!((broker.host.as_str(), broker.port), ("broker.shop.lan", 1883));
 //! assert_eq!(settings.topic_root("ignored"), "whirl/lathe-3");
+//! assert_eq!(settings.opcua().unwrap().unwrap().url(), "opc.tcp://127.0.0.1:4840/");
 //! ```
 
+use std::path::PathBuf;
+
 use serde::{Deserialize, Serialize};
+
+use crate::config::opcua::{self, Nameplate, OpcUaSettings, Security};
 
 /// MQTT's registered port for unencrypted connections (IANA).
 pub const MQTT_PORT: u16 = 1883;
@@ -32,8 +42,9 @@ pub const MQTT_PORT: u16 = 1883;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TelemetrySettings {
-    /// The broker, `mqtt://HOST[:PORT]` (port 1883 unless given).
-    pub mqtt: String,
+    /// The broker, `mqtt://HOST[:PORT]` (port 1883 unless given); absent: no MQTT.
+    #[serde(default)]
+    pub mqtt: Option<String>,
     /// The shop's topic prefix, one or more levels (`whirl`, `plant2/whirling`).
     #[serde(default = "default_prefix")]
     pub prefix: String,
@@ -61,6 +72,38 @@ pub struct TelemetrySettings {
     /// absent: none.
     #[serde(default)]
     pub console: Option<String>,
+    /// Where the OPC UA server listens, `HOST:PORT` (an IP address of this host, or
+    /// localhost; port 4840 unless given); absent: no OPC UA server.
+    #[serde(default)]
+    pub opcua: Option<String>,
+    /// How the OPC UA server secures messages: `none` (loopback only, its default),
+    /// `sign` or `sign-and-encrypt` (the default beyond loopback).
+    #[serde(default)]
+    pub opcua_security: Option<Security>,
+    /// The user OPC UA clients log in as (required beyond loopback; absent on loopback:
+    /// anonymous clients).
+    #[serde(default)]
+    pub opcua_user: Option<String>,
+    /// Its password.
+    #[serde(default)]
+    pub opcua_password: Option<String>,
+    /// The folder of the server's certificate and the clients' it trusts; absent: the
+    /// user's data folder.
+    #[serde(default)]
+    pub opcua_pki: Option<PathBuf>,
+    /// The machine's maker in its OPC UA `Identification`; absent: "whirl".
+    #[serde(default)]
+    pub opcua_manufacturer: Option<String>,
+    /// Its model; absent: the profile's name.
+    #[serde(default)]
+    pub opcua_model: Option<String>,
+    /// Its serial number.
+    #[serde(default)]
+    pub opcua_serial_number: Option<String>,
+    /// A URI naming this one machine (`urn:shop.example:lathe-3`); absent: made from the
+    /// host's name and the machine's.
+    #[serde(default)]
+    pub opcua_product_instance_uri: Option<String>,
 }
 
 fn default_prefix() -> String {
@@ -95,6 +138,14 @@ pub struct TelemetryError {
     pub problem: String,
 }
 
+/// An OPC UA setting's refusal, as a `[telemetry]` one.
+fn from_opcua(e: opcua::OpcUaSettingsError) -> TelemetryError {
+    TelemetryError {
+        key: e.key,
+        problem: e.problem,
+    }
+}
+
 fn invalid(key: &str, problem: impl Into<String>) -> TelemetryError {
     TelemetryError {
         key: key.into(),
@@ -106,7 +157,15 @@ impl TelemetrySettings {
     /// Settings for the broker at `url` and nothing else said (the command line's `--mqtt`).
     pub fn for_broker(url: &str) -> TelemetrySettings {
         TelemetrySettings {
-            mqtt: url.into(),
+            mqtt: Some(url.into()),
+            ..TelemetrySettings::nowhere()
+        }
+    }
+
+    /// Settings that say nothing: no broker, no OPC UA server, every default.
+    pub fn nowhere() -> TelemetrySettings {
+        TelemetrySettings {
+            mqtt: None,
             prefix: default_prefix(),
             machine: None,
             user: None,
@@ -115,33 +174,41 @@ impl TelemetrySettings {
             queue: default_queue(),
             progress_interval_s: default_progress_interval(),
             console: None,
+            opcua: None,
+            opcua_security: None,
+            opcua_user: None,
+            opcua_password: None,
+            opcua_pki: None,
+            opcua_manufacturer: None,
+            opcua_model: None,
+            opcua_serial_number: None,
+            opcua_product_instance_uri: None,
         }
     }
 
     /// These settings with the broker at `url` (`--mqtt` over a profile's `mqtt`).
     pub fn with_broker(mut self, url: &str) -> TelemetrySettings {
-        url.clone_into(&mut self.mqtt);
+        self.mqtt = Some(url.into());
         self
     }
 
-    /// The broker's host and port from `mqtt`.
-    pub fn broker(&self) -> Result<Broker, TelemetryError> {
-        let url = url::Url::parse(&self.mqtt).map_err(|e| {
+    /// The broker's host and port from `mqtt`; `None` without one.
+    pub fn broker(&self) -> Result<Option<Broker>, TelemetryError> {
+        let Some(mqtt) = &self.mqtt else {
+            return Ok(None);
+        };
+        let url = url::Url::parse(mqtt).map_err(|e| {
             invalid(
                 "mqtt",
-                format!(
-                    "\"{}\" is not a URL ({e}): give mqtt://HOST[:PORT]",
-                    self.mqtt
-                ),
+                format!("\"{mqtt}\" is not a URL ({e}): give mqtt://HOST[:PORT]"),
             )
         })?;
         if url.scheme() != "mqtt" {
             return Err(invalid(
                 "mqtt",
                 format!(
-                    "\"{}\": the scheme must be mqtt:// (a broker's unencrypted port); \
+                    "\"{mqtt}\": the scheme must be mqtt:// (a broker's unencrypted port); \
                      {}:// is not spoken",
-                    self.mqtt,
                     url.scheme()
                 ),
             ));
@@ -155,26 +222,80 @@ impl TelemetrySettings {
             return Err(invalid(
                 "mqtt",
                 format!(
-                    "\"{}\" says more than mqtt://HOST[:PORT]: a user and a password go in \
-                     `user` and `password`, the topic prefix in `prefix`",
-                    self.mqtt
+                    "\"{mqtt}\" says more than mqtt://HOST[:PORT]: a user and a password go \
+                     in `user` and `password`, the topic prefix in `prefix`"
                 ),
             ));
         }
         let host = match url.host() {
             Some(url::Host::Ipv6(address)) => address.to_string(),
             Some(host) => host.to_string(),
-            None => return Err(invalid("mqtt", format!("\"{}\" names no host", self.mqtt))),
+            None => return Err(invalid("mqtt", format!("\"{mqtt}\" names no host"))),
         };
-        Ok(Broker {
+        Ok(Some(Broker {
             host,
             port: url.port().unwrap_or(MQTT_PORT),
-        })
+        }))
+    }
+
+    /// The OPC UA server's settings from `opcua` and the `opcua_*` keys, checked; `None`
+    /// without `opcua`.
+    pub fn opcua(&self) -> Result<Option<OpcUaSettings>, TelemetryError> {
+        let Some(address) = &self.opcua else {
+            return Ok(None);
+        };
+        let address = opcua::parse_address(address, "opcua").map_err(from_opcua)?;
+        self.opcua_at(address, "opcua").map(Some)
+    }
+
+    /// The OPC UA server's settings with the address `address` (from `key`: the profile's
+    /// `opcua`, or `--opcua` over it), checked.
+    pub fn opcua_at(
+        &self,
+        address: std::net::SocketAddr,
+        key: &str,
+    ) -> Result<OpcUaSettings, TelemetryError> {
+        OpcUaSettings::new(
+            address,
+            key,
+            self.opcua_security,
+            (self.opcua_user.as_deref(), self.opcua_password.as_deref()),
+            self.opcua_pki.clone(),
+        )
+        .map_err(from_opcua)
+    }
+
+    /// What the machine's OPC UA `Identification` says beyond its defaults.
+    pub fn nameplate(&self) -> Nameplate {
+        Nameplate {
+            manufacturer: self.opcua_manufacturer.clone(),
+            model: self.opcua_model.clone(),
+            serial_number: self.opcua_serial_number.clone(),
+            product_instance_uri: self.opcua_product_instance_uri.clone(),
+        }
     }
 
     /// Every value checked, naming the key.
     pub fn validate(&self) -> Result<(), TelemetryError> {
+        if self.mqtt.is_none() && self.opcua.is_none() {
+            return Err(invalid(
+                "mqtt",
+                "a [telemetry] says where the machine's state goes: `mqtt` (a broker), \
+                 `opcua` (an OPC UA server of the bridge's own) or both",
+            ));
+        }
         self.broker()?;
+        self.opcua()?;
+        if self.mqtt.is_none() {
+            for (key, given) in [
+                ("user", self.user.is_some()),
+                ("password", self.password.is_some()),
+            ] {
+                if given {
+                    return Err(invalid(key, "is the MQTT broker's login: give `mqtt` too"));
+                }
+            }
+        }
         let prefix = &self.prefix;
         if prefix.is_empty()
             || prefix.starts_with('/')
@@ -261,14 +382,46 @@ mod tests {
         let s = TelemetrySettings::for_broker("mqtt://10.0.0.5");
         assert_eq!(
             s.broker().unwrap(),
-            Broker {
+            Some(Broker {
                 host: "10.0.0.5".into(),
                 port: 1883
-            }
+            })
         );
         let s = TelemetrySettings::for_broker("mqtt://[::1]:18830");
-        assert_eq!(s.broker().unwrap().host, "::1");
-        assert_eq!(s.broker().unwrap().port, 18830);
+        let broker = s.broker().unwrap().unwrap();
+        assert_eq!((broker.host.as_str(), broker.port), ("::1", 18830));
+    }
+
+    #[test]
+    fn a_table_names_a_broker_an_opcua_server_or_both() {
+        let opcua = settings("opcua = \"127.0.0.1:4841\"");
+        opcua.validate().unwrap();
+        assert_eq!(opcua.broker().unwrap(), None);
+        let served = opcua.opcua().unwrap().unwrap();
+        assert_eq!(served.address, "127.0.0.1:4841".parse().unwrap());
+        assert_eq!(served.security, Security::None);
+        let both = settings("mqtt = \"mqtt://b\"\nopcua = \"localhost\"");
+        both.validate().unwrap();
+        assert!(both.broker().unwrap().is_some() && both.opcua().unwrap().is_some());
+        let secured = settings(
+            "opcua = \"0.0.0.0:4840\"\nopcua_security = \"sign\"\nopcua_user = \"mes\"\n\
+             opcua_password = \"pw\"\nopcua_pki = \"/var/lib/whirl/pki\"\n\
+             opcua_manufacturer = \"Acme\"\nopcua_serial_number = \"W-17\"",
+        );
+        secured.validate().unwrap();
+        let served = secured.opcua().unwrap().unwrap();
+        assert_eq!(served.security, Security::Sign);
+        assert_eq!(served.pki, Some(PathBuf::from("/var/lib/whirl/pki")));
+        let nameplate = secured.nameplate();
+        assert_eq!(nameplate.manufacturer.as_deref(), Some("Acme"));
+        assert_eq!(nameplate.serial_number.as_deref(), Some("W-17"));
+        // `--opcua` over a profile without `opcua` uses its other keys, and names itself.
+        let at = "0.0.0.0:4840".parse().unwrap();
+        let error = TelemetrySettings::nowhere()
+            .opcua_at(at, "--opcua")
+            .unwrap_err();
+        assert_eq!(error.key, "opcua_user");
+        assert!(error.problem.contains("--opcua"), "{error}");
     }
 
     #[test]
@@ -303,6 +456,22 @@ mod tests {
                 "mqtt = \"mqtt://b\"\nprogress_interval_s = 0.0",
                 "progress_interval_s",
             ),
+            ("prefix = \"whirl\"", "mqtt"),
+            (
+                "opcua = \"127.0.0.1\"\nuser = \"u\"\npassword = \"p\"",
+                "user",
+            ),
+            ("opcua = \"lathe3.shop.lan:4840\"", "opcua"),
+            ("opcua = \"0.0.0.0:4840\"", "opcua_user"),
+            (
+                "opcua = \"0.0.0.0:4840\"\nopcua_security = \"none\"\nopcua_user = \"u\"\n\
+                 opcua_password = \"p\"",
+                "opcua_security",
+            ),
+            (
+                "opcua = \"127.0.0.1\"\nopcua_user = \"u\"",
+                "opcua_password",
+            ),
         ];
         for (text, key) in cases {
             let error = settings(text).validate().expect_err(text);
@@ -310,5 +479,8 @@ mod tests {
         }
         let unknown = toml::from_str::<TelemetrySettings>("mqtt = \"mqtt://b\"\ntopic = \"x\"");
         assert!(unknown.unwrap_err().to_string().contains("topic"));
+        let mode =
+            toml::from_str::<TelemetrySettings>("opcua = \"::1\"\nopcua_security = \"open\"");
+        assert!(mode.unwrap_err().to_string().contains("sign-and-encrypt"));
     }
 }

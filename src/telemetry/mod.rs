@@ -12,12 +12,13 @@
 //! - [`message`]: the topics and their JSON payloads.
 //! - [`tracker`]: the machine's state from a run's log events and progress (sans-I/O).
 //! - [`outbox`]: the queue, its order, acknowledgements and reconnections (sans-I/O).
-//! - [`mqtt`]: the thread and its MQTT connection.
+//! - [`mqtt`]: the thread and its MQTT connection (if `[telemetry]` names a broker), and
+//!   the [`Observer`] that also reads the tracker's messages (the OPC UA server's feed).
 
 pub mod message;
 pub mod mqtt;
 pub mod outbox;
 pub mod tracker;
 
-pub use mqtt::{Closed, Handle, Telemetry};
+pub use mqtt::{Closed, Handle, Observer, Telemetry};
 pub use tracker::RunContext;

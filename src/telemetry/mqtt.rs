@@ -8,6 +8,10 @@
 //! the outbox keeps the events, and said again when it is back. The bridge's birth and its
 //! last will are retained on `status`, so a bridge that dies is shown offline by the broker
 //! once one and a half keep-alives pass without a word from it.
+//!
+//! The tracker's messages may have a second reader, an [`Observer`] called on the same
+//! thread (the OPC UA server's feed, `crate::opcua`), and the broker may be absent
+//! (`[telemetry]` without `mqtt`): then the thread only follows the run for its observer.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -56,6 +60,11 @@ pub struct Closed {
     pub lost: u64,
 }
 
+/// Another reader of the tracker's messages, called on the telemetry thread with each one
+/// as it is made, the machine's first state included. It must not wait: the thread
+/// publishes to the broker too.
+pub type Observer = Box<dyn Fn(&Out) + Send>;
+
 /// Who publishes: the machine's name and topics, and this bridge.
 #[derive(Debug, Clone)]
 struct Identity {
@@ -93,6 +102,17 @@ impl Telemetry {
     /// which must be valid ([`TelemetrySettings::validate`]: a profile's loading checks
     /// them). The machine is announced online and idle as soon as the broker answers.
     pub fn start(settings: &TelemetrySettings, machine: &str) -> std::io::Result<Telemetry> {
+        Telemetry::start_observed(settings, machine, None)
+    }
+
+    /// [`Telemetry::start`], the tracker's messages also handed to `observer`. Without a
+    /// broker (`mqtt` absent) nothing is published: the thread follows the run for the
+    /// observer alone.
+    pub fn start_observed(
+        settings: &TelemetrySettings,
+        machine: &str,
+        observer: Option<Observer>,
+    ) -> std::io::Result<Telemetry> {
         let session = session_word();
         let identity = Identity {
             root: settings.topic_root(machine),
@@ -127,8 +147,14 @@ impl Telemetry {
                     .enable_all()
                     .build()
                     .expect("a runtime of one thread builds");
-                let mut closed =
-                    runtime.block_on(publish(&settings, identity, receiver, closing, commands));
+                let mut closed = runtime.block_on(publish(
+                    &settings,
+                    identity,
+                    receiver,
+                    observer.as_ref(),
+                    closing,
+                    commands,
+                ));
                 closed.lost = lost.load(Ordering::Relaxed);
                 closed
             })?;
@@ -304,11 +330,13 @@ async fn until(at: Option<Instant>) {
     }
 }
 
-/// The thread's work: follow the run, keep the outbox, hold a connection to the broker.
+/// The thread's work: follow the run, hand its messages to the observer, keep the outbox,
+/// hold a connection to the broker (if there is one).
 async fn publish(
     settings: &TelemetrySettings,
     identity: Identity,
     mut inputs: mpsc::Receiver<Input>,
+    observer: Option<&Observer>,
     mut closing: oneshot::Receiver<()>,
     commands: Commands,
 ) -> Closed {
@@ -325,43 +353,54 @@ async fn publish(
         reason: Some("connection lost (the broker's last will for the bridge)".into()),
         ..identity.status.clone()
     };
-    let mut options = MqttOptions::new(
-        format!("whirl-{}", identity.status.session),
-        broker.host.clone(),
-        broker.port,
-    );
-    options
-        .set_keep_alive(Duration::from_secs(settings.keepalive_s))
-        .set_clean_session(true)
-        .set_inflight(WINDOW as u16)
-        .set_max_packet_size(MAX_PACKET, MAX_PACKET)
-        .set_last_will(LastWill::new(
-            format!("{}/{}", identity.root, message::STATUS),
-            payload(&will),
-            QoS::AtLeastOnce,
-            true,
-        ));
-    if let Some(user) = &settings.user {
-        options.set_credentials(user, settings.password.clone().unwrap_or_default());
-    }
+    let options = broker.map(|broker| {
+        let mut options = MqttOptions::new(
+            format!("whirl-{}", identity.status.session),
+            broker.host,
+            broker.port,
+        );
+        options
+            .set_keep_alive(Duration::from_secs(settings.keepalive_s))
+            .set_clean_session(true)
+            .set_inflight(WINDOW as u16)
+            .set_max_packet_size(MAX_PACKET, MAX_PACKET)
+            .set_last_will(LastWill::new(
+                format!("{}/{}", identity.root, message::STATUS),
+                payload(&will),
+                QoS::AtLeastOnce,
+                true,
+            ));
+        if let Some(user) = &settings.user {
+            options.set_credentials(user, settings.password.clone().unwrap_or_default());
+        }
+        options
+    });
+    let observe = |out: &[Out]| {
+        if let Some(observer) = observer {
+            out.iter().for_each(observer);
+        }
+    };
     let started = Instant::now();
     let mut tracker = Tracker::new(&identity.status.session, settings.progress_interval_s);
     let mut outbox = Outbox::new(status(&identity.status), settings.queue, WINDOW);
     let mut said = Said::default();
-    let first = tracker.state(&Timestamp::now().to_text());
-    take(vec![Out::State(first)], &mut outbox, &mut said);
+    let first = vec![Out::State(tracker.state(&Timestamp::now().to_text()))];
+    observe(&first);
+    take(first, &mut outbox, &mut said);
     let mut connection: Option<Connection> = None;
     let mut retry_at: Option<Instant> = None;
     let mut retry = FIRST_RETRY;
     let mut deadline: Option<Instant> = None;
     let mut inputs_open = true;
     let mut disconnecting = false;
-    let url = &settings.mqtt;
+    let url = settings.mqtt.as_deref().unwrap_or_default();
     let command_topic = format!("{}/{}", identity.root, message::COMMAND);
     loop {
-        if connection.is_none() && retry_at.is_none_or(|at| at <= Instant::now()) {
-            connection = Some(Connection::open(options.clone()));
-            retry_at = None;
+        if let Some(options) = &options {
+            if connection.is_none() && retry_at.is_none_or(|at| at <= Instant::now()) {
+                connection = Some(Connection::open(options.clone()));
+                retry_at = None;
+            }
         }
         if let Some(c) = &connection {
             c.publish(&identity.root, &mut outbox);
@@ -373,21 +412,20 @@ async fn publish(
         tokio::select! {
             input = inputs.recv(), if inputs_open => match input {
                 Some(input) => {
-                    let ms = started.elapsed().as_millis() as i64;
-                    let time = Timestamp::now().to_text();
-                    let out = match input {
-                        Input::Run(context) => {
-                            tracker.prepare(context);
-                            Vec::new()
-                        }
-                        Input::Record(record) => tracker.record(&record, &time),
-                        Input::Progress(p) => tracker.progress(&p, ms, &time),
-                    };
+                    let out = follow(&mut tracker, input, started);
+                    observe(&out);
                     take(out, &mut outbox, &mut said);
                 }
                 None => inputs_open = false,
             },
             _ = &mut closing, if deadline.is_none() => {
+                if options.is_none() {
+                    // No broker to wait for: what the run handed over goes to the observer.
+                    while let Ok(input) = inputs.try_recv() {
+                        observe(&follow(&mut tracker, input, started));
+                    }
+                    break;
+                }
                 deadline = Some(Instant::now() + CLOSE_WAIT);
                 let goodbye = Status {
                     online: false,
@@ -472,6 +510,20 @@ fn take_command(payload: &[u8], commands: &Commands) -> Result<(), String> {
              serve` does)",
             command.command, command.by
         )),
+    }
+}
+
+/// What the tracker makes of one input, at the time of its taking.
+fn follow(tracker: &mut Tracker, input: Input, started: Instant) -> Vec<Out> {
+    let ms = started.elapsed().as_millis() as i64;
+    let time = Timestamp::now().to_text();
+    match input {
+        Input::Run(context) => {
+            tracker.prepare(context);
+            Vec::new()
+        }
+        Input::Record(record) => tracker.record(&record, &time),
+        Input::Progress(p) => tracker.progress(&p, ms, &time),
     }
 }
 

@@ -54,6 +54,7 @@ use crate::protocol::canopen::cia402::object;
 use crate::protocol::canopen::session::{Event, Phase, Session, SessionConfig, StopReason};
 use crate::protocol::canopen::slcan::{Bitrate, Command, Decoder, Received};
 use crate::protocol::canopen::{CanFrame, CanId};
+use futures_util::FutureExt;
 use std::collections::VecDeque;
 use std::time::Duration;
 use thiserror::Error;
@@ -793,9 +794,28 @@ impl Run {
                     let now = self.clock.now();
                     self.take(incoming, session, now)?;
                 }
-                _ = tick.tick() => {}
+                _ = tick.tick() => self.catch_up(port, name, session).await?,
             }
         }
+    }
+
+    /// Woken by time alone, and before that time is told to the session: the rest of the
+    /// host gets a turn (the I/O driver, and drives simulated in this process, which a
+    /// stalled host stopped as it stopped this task), then what the port holds by then is
+    /// taken. A host that stood still for a boot-up's or an SDO answer's wait would
+    /// otherwise time out a drive whose answer came in that very stall.
+    async fn catch_up(
+        &mut self,
+        port: &mut Port,
+        name: &str,
+        session: &mut Session,
+    ) -> Result<(), CanError> {
+        tokio::task::yield_now().await;
+        while let Some(incoming) = port.read(name).now_or_never() {
+            let now = self.clock.now();
+            self.take(incoming?, session, now)?;
+        }
+        Ok(())
     }
 
     /// Writes `event` to the log unless a write has failed (the first failure is kept).

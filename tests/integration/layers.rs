@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 /// The layers in the order they may import each other: a module may name its own layer
 /// and the ones before it.
-const LAYERS: [&str; 12] = [
+const LAYERS: [&str; 13] = [
     "geometry",
     "config",
     "program",
@@ -22,6 +22,7 @@ const LAYERS: [&str; 12] = [
     "judge",
     "records",
     "telemetry",
+    "opcua",
     "console",
 ];
 

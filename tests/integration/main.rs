@@ -22,6 +22,7 @@ mod modbus_map;
 mod modbus_wire;
 mod mosquitto;
 mod nut;
+mod opcua;
 mod outputs;
 mod overrides;
 mod profile_view;

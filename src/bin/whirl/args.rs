@@ -201,7 +201,7 @@ pub(crate) enum Command {
         /// Serve the shop overview instead of a machine's console: every machine whose
         /// bridge publishes to the --mqtt broker, and the shop's history from the run
         /// records (docs/shop.md). Read-only: it starts nothing.
-        #[arg(long, requires = "mqtt", conflicts_with = "machines")]
+        #[arg(long, requires = "mqtt", conflicts_with_all = ["machines", "opcua"])]
         shop: bool,
         /// The topic prefix the shop's bridges publish under (with --shop).
         #[arg(long, default_value = "whirl", requires = "shop")]
@@ -211,6 +211,12 @@ pub(crate) enum Command {
         /// (docs/shop.md). A broker that cannot be reached never slows or stops a run.
         #[arg(long, value_name = "URL")]
         mqtt: Option<String>,
+        /// Serve every machine the console runs as OPC UA for Machine Tools at
+        /// opc.tcp://HOST:PORT (HOST an address of this host; port 0: any free one,
+        /// printed at start), in place of the profiles' `[telemetry] opcua` (docs/opcua.md).
+        /// Beyond loopback the profiles' `opcua_security` and `opcua_user` must secure it.
+        #[arg(long, value_name = "HOST:PORT")]
+        opcua: Option<String>,
     },
     /// Read executed-path logs.
     Log {

@@ -190,6 +190,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             shop,
             prefix,
             mqtt,
+            opcua,
         } => {
             let listen = serve::Listen {
                 address: listen,
@@ -199,7 +200,13 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             let records = (cli.db.as_deref(), cli.allow_unrecorded);
             match (shop, mqtt.as_deref()) {
                 (true, Some(mqtt)) => serve::shop(&jobs, listen, records, (mqtt, &prefix)),
-                _ => serve::run(&machines, &jobs, listen, records, mqtt.as_deref()),
+                _ => serve::run(
+                    &machines,
+                    &jobs,
+                    listen,
+                    records,
+                    (mqtt.as_deref(), opcua.as_deref()),
+                ),
             }
         }
         Command::Runs { command } => runs::runs(command, record),

@@ -4,8 +4,11 @@
 //! `WHIRL_DB`, else the default): a database it cannot open refuses the start unless
 //! `--allow-unrecorded`, and the records a killed console left running are closed when it
 //! starts again. A shop's PostgreSQL that cannot be reached keeps the console's runs in
-//! its spool on the host, uploaded when each run starts and every
-//! [`UPLOAD_EVERY`] while the console serves, once the server answers.
+//! its spool on the host, uploaded when each run starts and every [`UPLOAD_EVERY`] while
+//! the console serves, once the server answers. Each machine whose profile's `[telemetry]`
+//! names `opcua` (or every machine, with `--opcua`) is served as OPC UA for Machine Tools
+//! (docs/opcua.md): one server for the machines that name one address, refused before
+//! anything listens if its security breaks the rules.
 
 use anyhow::{Context, Result};
 use std::future::IntoFuture;
@@ -16,6 +19,7 @@ use std::sync::Arc;
 use std::time::Duration;
 use tokio::signal::unix::{signal, SignalKind};
 use whirl::config::machine::MachineProfile;
+use whirl::config::opcua::{parse_address, OpcUaSettings};
 use whirl::config::telemetry::TelemetrySettings;
 use whirl::console::gate::Gate;
 use whirl::console::http::{self, Edge};
@@ -25,8 +29,9 @@ use whirl::console::registry::Phase;
 use whirl::console::shop::{feed, Shop};
 use whirl::console::token::{check_listen, Token};
 use whirl::console::{machines, Console};
+use whirl::opcua::{Identity, OpcUa};
 use whirl::records::{FileSnapshot, Place, Process, Store};
-use whirl::telemetry::Telemetry;
+use whirl::telemetry::{Observer, Telemetry};
 use whirl::transport::Command;
 
 use crate::terminal::say;
@@ -54,13 +59,13 @@ pub(crate) struct Listen<'a> {
 
 /// The console of `profiles` (the built-in simulator's if none) and the jobs under
 /// `jobs`, on `listen`, recording its runs in `db` (`--db`; else `WHIRL_DB` or the
-/// default).
+/// default), publishing to `--mqtt` and serving OPC UA at `--opcua` if given.
 pub(crate) fn run(
     profiles: &[PathBuf],
     jobs: &std::path::Path,
     listen: Listen<'_>,
     (db, allow_unrecorded): (Option<&str>, bool),
-    mqtt: Option<&str>,
+    (mqtt, opcua): (Option<&str>, Option<&str>),
 ) -> Result<ExitCode> {
     let token = listen.token.map(Token::new).transpose()?;
     check_listen(listen.address, token.as_ref())?;
@@ -80,13 +85,26 @@ pub(crate) fn run(
         loaded
     };
     let machine_files = profiles.iter().map(|p| p.name.clone()).zip(files).collect();
+    let servers = opcua_servers(&profiles, opcua)?;
     let mut telemetry = Vec::new();
     for profile in &profiles {
-        if let Some(settings) = crate::telemetry::settings(profile, mqtt)? {
-            let started = Telemetry::start(&settings, &profile.name)
-                .context("cannot start the telemetry thread")?;
-            telemetry.push((profile.name.clone(), started));
+        let broker = crate::telemetry::settings(profile, mqtt)?;
+        let feeds: Vec<_> = servers
+            .iter()
+            .filter_map(|server| server.feed(&profile.name))
+            .collect();
+        if broker.is_none() && feeds.is_empty() {
+            continue;
         }
+        let observer: Option<Observer> = (!feeds.is_empty()).then(|| {
+            Box::new(move |out: &_| feeds.iter().for_each(|feed| feed.apply(out))) as Observer
+        });
+        let settings = broker
+            .or_else(|| profile.telemetry.clone())
+            .unwrap_or_else(TelemetrySettings::nowhere);
+        let started = Telemetry::start_observed(&settings, &profile.name, observer)
+            .context("cannot start the telemetry thread")?;
+        telemetry.push((profile.name.clone(), started));
     }
     let machines = machines(profiles).map_err(anyhow::Error::msg)?;
     let jobs = JobDir::open(jobs)
@@ -115,6 +133,12 @@ pub(crate) fn run(
         );
         let (listener, address, edge) = bind(&listen, token).await?;
         say!("whirl serve: the console is at http://{address}/ (Ctrl-C ends it)")?;
+        for server in &servers {
+            say!(
+                "whirl serve: OPC UA for Machine Tools at opc.tcp://{}/",
+                server.address()
+            )?;
+        }
         let mut signals = Signals::install()?;
         let (stopped, serving_ends) = tokio::sync::oneshot::channel::<()>();
         let app = http::router(Arc::clone(&console), Arc::clone(&edge));
@@ -145,6 +169,9 @@ pub(crate) fn run(
         // Each machine said offline, after its runs have stopped.
         for (_, telemetry) in telemetry {
             let _ = tokio::task::spawn_blocking(move || telemetry.close()).await;
+        }
+        for server in servers {
+            let _ = tokio::task::spawn_blocking(move || server.close()).await;
         }
         Ok(ExitCode::SUCCESS)
     })
@@ -179,12 +206,15 @@ pub(crate) fn shop(
 ) -> Result<ExitCode> {
     let token = listen.token.map(Token::new).transpose()?;
     check_listen(listen.address, token.as_ref())?;
-    let broker = TelemetrySettings::for_broker(mqtt)
+    let settings = TelemetrySettings {
+        prefix: prefix.to_owned(),
+        ..TelemetrySettings::for_broker(mqtt)
+    };
+    let broker = settings
         .broker()
-        .map_err(|e| anyhow::anyhow!("--mqtt: {}", e.problem))?;
-    let mut probe = TelemetrySettings::for_broker(mqtt);
-    probe.prefix = prefix.to_owned();
-    probe
+        .map_err(|e| anyhow::anyhow!("--mqtt: {}", e.problem))?
+        .expect("for_broker names a broker");
+    settings
         .validate()
         .map_err(|e| anyhow::anyhow!("--prefix: {}", e.problem))?;
     let jobs = JobDir::open(jobs)
@@ -246,6 +276,55 @@ async fn upload_every(store: Store) {
             }
         }
     }
+}
+
+/// The OPC UA servers for `profiles`: each profile's `[telemetry] opcua`, or `--opcua`
+/// (`flag`) for every profile over it, the profiles' other `opcua_*` keys kept. Machines
+/// that name one address share its server, and must secure it alike. Each listens before
+/// this returns.
+fn opcua_servers(profiles: &[MachineProfile], flag: Option<&str>) -> Result<Vec<OpcUa>> {
+    let flag = flag
+        .map(|text| parse_address(text, "--opcua"))
+        .transpose()
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut wanted: Vec<(OpcUaSettings, &'static str, Vec<Identity>)> = Vec::new();
+    for profile in profiles {
+        let telemetry = profile
+            .telemetry
+            .clone()
+            .unwrap_or_else(TelemetrySettings::nowhere);
+        let (settings, key) = match flag {
+            Some(address) => (telemetry.opcua_at(address, "--opcua"), "--opcua"),
+            None => match telemetry.opcua().transpose() {
+                Some(settings) => (settings, "opcua"),
+                None => continue,
+            },
+        };
+        let settings = settings.map_err(|e| {
+            anyhow::anyhow!("the machine profile {}: [telemetry] {e}", profile.name)
+        })?;
+        let identity = Identity::new(&profile.name, &telemetry.nameplate());
+        match wanted
+            .iter_mut()
+            .find(|(s, ..)| s.address == settings.address)
+        {
+            Some((same, _, identities)) if *same == settings => identities.push(identity),
+            Some((_, _, identities)) => anyhow::bail!(
+                "the machine profile {} serves OPC UA at {} as {} does, with other \
+                 `opcua_*` keys: machines on one server are secured alike",
+                profile.name,
+                settings.address,
+                identities[0].name
+            ),
+            None => wanted.push((settings, key, vec![identity])),
+        }
+    }
+    wanted
+        .iter()
+        .map(|(settings, key, identities)| {
+            OpcUa::start(settings, key, identities).context("cannot serve OPC UA")
+        })
+        .collect()
 }
 
 /// SIGINT and SIGTERM, as `whirl serve` hears them.

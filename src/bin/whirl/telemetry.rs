@@ -11,7 +11,7 @@ use whirl::transport::ProgressFn;
 use crate::terminal::warn;
 
 /// The settings a run publishes with: the profile's `[telemetry]` with `--mqtt` over its
-/// broker, or `--mqtt` alone; `None` for neither. A bad `--mqtt` is refused here, before
+/// broker, or `--mqtt` alone; `None` for no broker. A bad `--mqtt` is refused here, before
 /// anything is opened.
 pub(crate) fn settings(
     machine: &MachineProfile,
@@ -20,8 +20,9 @@ pub(crate) fn settings(
     let settings = match (&machine.telemetry, mqtt) {
         (Some(profile), Some(url)) => profile.clone().with_broker(url),
         (None, Some(url)) => TelemetrySettings::for_broker(url),
-        (Some(profile), None) => return Ok(Some(profile.clone())),
-        (None, None) => return Ok(None),
+        (Some(profile), None) if profile.mqtt.is_some() => return Ok(Some(profile.clone())),
+        // A `[telemetry]` with `opcua` alone: only `whirl serve` serves it.
+        (_, None) => return Ok(None),
     };
     if let Err(e) = settings.broker() {
         anyhow::bail!("--mqtt: {}", e.problem);

@@ -128,7 +128,7 @@ fn a_profiles_telemetry_is_read_and_a_bad_one_refused_naming_its_key() {
         format!("{SIM}\n[telemetry]\nmqtt = \"mqtt://broker:1884\"\nmachine = \"Lathe 3\"\n");
     let profile = MachineProfile::from_toml(&good, "lathe.toml").unwrap();
     let telemetry = profile.telemetry.unwrap();
-    assert_eq!(telemetry.broker().unwrap().port, 1884);
+    assert_eq!(telemetry.broker().unwrap().unwrap().port, 1884);
     assert_eq!(telemetry.topic_root(&profile.name), "whirl/lathe-3");
     let bad = good.replace("mqtt://broker:1884", "tcp://broker:1884");
     let error = MachineProfile::from_toml(&bad, "lathe.toml").unwrap_err();
