@@ -419,11 +419,15 @@ async fn publish(
                 None => inputs_open = false,
             },
             _ = &mut closing, if deadline.is_none() => {
+                // What the run handed over before it closed comes before the goodbye: the
+                // run's end among it (this branch may be taken while inputs wait).
+                while let Ok(input) = inputs.try_recv() {
+                    let out = follow(&mut tracker, input, started);
+                    observe(&out);
+                    take(out, &mut outbox, &mut said);
+                }
                 if options.is_none() {
-                    // No broker to wait for: what the run handed over goes to the observer.
-                    while let Ok(input) = inputs.try_recv() {
-                        observe(&follow(&mut tracker, input, started));
-                    }
+                    // No broker to wait for.
                     break;
                 }
                 deadline = Some(Instant::now() + CLOSE_WAIT);

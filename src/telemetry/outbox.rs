@@ -40,6 +40,8 @@ pub struct Outbox {
     connected: bool,
     /// The bridge's birth, first on every connection.
     birth: Outgoing,
+    /// The bridge's goodbye, once it is closing.
+    goodbye: Option<Outgoing>,
     /// The newest state made, sent again on a connection that has none queued: a broker
     /// restarted without persistence has lost its retained copy.
     state: Option<Outgoing>,
@@ -58,16 +60,17 @@ impl Outbox {
             progress: None,
             connected: false,
             birth,
+            goodbye: None,
             state: None,
         }
     }
 
     /// A QoS 1 message to deliver. Returns whether one had to be dropped for it (the queue
-    /// full while the broker is away). A status message (the goodbye) takes the birth's
-    /// place on later connections; a retained one (the state) is kept as the newest.
+    /// full while the broker is away). A status message is the goodbye (see
+    /// [`Outbox::connected`]); a retained one (the state) is kept as the newest.
     pub fn push(&mut self, message: Outgoing) -> bool {
         if message.topic == self.birth.topic {
-            self.birth = message.clone();
+            self.goodbye = Some(message.clone());
         } else if message.retain {
             self.state = Some(message.clone());
         }
@@ -95,17 +98,32 @@ impl Outbox {
 
     /// A connection is up (the broker's CONNACK): the birth goes first, then the newest
     /// state if none is queued, then what waited, from its oldest unacknowledged message.
+    /// A goodbye not yet acknowledged stays last, after all the run handed over: a reader
+    /// takes it as the session's end. One the broker has is said first in the birth's
+    /// place: a birth then would show a bridge that has stopped as online.
     pub fn connected(&mut self) {
         self.connected = true;
         self.sent = 0;
-        let birth = self.birth.topic;
-        self.queue.retain(|m| m.topic != birth);
+        let status = self.birth.topic;
+        let goodbye_waits = self.goodbye.as_ref().is_some_and(|goodbye| {
+            self.queue
+                .iter()
+                .any(|m| m.topic == status && m.payload == goodbye.payload)
+        });
+        self.queue.retain(|m| m.topic != status);
         if let Some(state) = &self.state {
             if !self.queue.iter().any(|m| m.topic == state.topic) {
                 self.queue.push_front(state.clone());
             }
         }
-        self.queue.push_front(self.birth.clone());
+        match &self.goodbye {
+            Some(goodbye) if goodbye_waits => {
+                self.queue.push_front(self.birth.clone());
+                self.queue.push_back(goodbye.clone());
+            }
+            Some(goodbye) => self.queue.push_front(goodbye.clone()),
+            None => self.queue.push_front(self.birth.clone()),
+        }
     }
 
     /// The connection is gone: what was out and not acknowledged is sent again on the
@@ -268,6 +286,48 @@ mod tests {
             outbox.acked();
         }
         assert_eq!(outbox.waiting(), 0);
+    }
+
+    #[test]
+    fn a_goodbye_made_before_the_first_connection_goes_after_what_waited() {
+        let mut outbox = Outbox::new(birth(), 10, 10);
+        outbox.push(message("event", 1));
+        outbox.push(message("state", 2));
+        outbox.push(message("status", 9));
+        outbox.connected();
+        assert_eq!(
+            drain(&mut outbox),
+            [("status", 0), ("event", 1), ("state", 2), ("status", 9)]
+        );
+    }
+
+    #[test]
+    fn a_goodbye_lost_with_its_connection_is_sent_again_last() {
+        let mut outbox = Outbox::new(birth(), 10, 10);
+        outbox.connected();
+        outbox.push(message("event", 1));
+        outbox.push(message("status", 9));
+        assert_eq!(drain(&mut outbox).len(), 3);
+        outbox.acked(); // the birth
+        outbox.disconnected();
+        outbox.connected();
+        assert_eq!(
+            drain(&mut outbox),
+            [("status", 0), ("event", 1), ("status", 9)]
+        );
+    }
+
+    #[test]
+    fn once_the_broker_has_the_goodbye_a_later_connection_says_it_in_the_births_place() {
+        let mut outbox = Outbox::new(birth(), 10, 10);
+        outbox.connected();
+        outbox.push(message("status", 9));
+        assert_eq!(drain(&mut outbox).len(), 2);
+        outbox.acked();
+        outbox.acked();
+        outbox.disconnected();
+        outbox.connected();
+        assert_eq!(drain(&mut outbox), [("status", 9)]);
     }
 
     #[test]

@@ -19,7 +19,7 @@ use whirl::log::ExecLog;
 use whirl::telemetry::{RunContext, Telemetry};
 use whirl::transport::{control, Posted};
 
-use crate::mosquitto::{on, Mosquitto, Subscriber};
+use crate::mosquitto::{on, Got, Mosquitto, Subscriber};
 use crate::util;
 
 /// The built-in simulator's profile name, "whirl-sim: simulated XZC whirling lathe", made
@@ -588,4 +588,69 @@ fn a_stream_to_the_machine_is_published_with_its_program_and_what_it_was_planned
     );
     let end = events.iter().find(|g| g.json["kind"] == "end").unwrap();
     assert_eq!(end.json["completed"], true);
+}
+
+#[test]
+fn a_runs_end_handed_over_just_before_the_bridge_closes_is_published_before_its_goodbye() {
+    let Some(broker) = Mosquitto::start() else {
+        return;
+    };
+    let subscriber = Subscriber::new(&broker, "whirl/#");
+    let machine = MachineProfile::builtin_sim().unwrap();
+    let telemetry =
+        Telemetry::start(&TelemetrySettings::for_broker(&broker.url()), &machine.name).unwrap();
+    let handle = telemetry.handle();
+    handle.prepare(RunContext {
+        kind: "dry-run".into(),
+        ..RunContext::default()
+    });
+    // A run's events handed over faster than the thread takes them, the bridge closing
+    // at once: the thread finds its close and the run's events waiting together.
+    let overrides: Vec<u16> = (0..100).map(|k| 50 + k % 2 * 10).collect();
+    let tap = handle.tap();
+    let mut log = ExecLog::memory().tapped(tap);
+    log.write(
+        0.0,
+        whirl::log::Event::Start {
+            program: "job.nc".into(),
+            lines: 10,
+            transport: "serial".into(),
+        },
+    )
+    .unwrap();
+    for &percent in &overrides {
+        let state = whirl::log::FeedOverrideState::Running;
+        log.write(0.0, whirl::log::Event::FeedOverride { percent, state })
+            .unwrap();
+    }
+    log.write(
+        0.0,
+        whirl::log::Event::End {
+            completed: true,
+            reason: None,
+        },
+    )
+    .unwrap();
+    drop(log);
+    let closed = telemetry.close();
+    assert_eq!((closed.undelivered, closed.lost), (0, 0), "{closed:?}");
+    let got = subscriber.wait(DELIVERY, |got| {
+        on(got, "status").iter().any(|m| m.json["online"] == false)
+    });
+    let after_birth: Vec<&Got> = got.iter().filter(|m| !m.retained).collect();
+    let kinds: Vec<&str> = after_birth
+        .iter()
+        .filter(|m| m.topic.ends_with("/event"))
+        .map(|m| m.json["kind"].as_str().unwrap())
+        .collect();
+    let mut expected = vec!["start"];
+    expected.extend(std::iter::repeat_n("feed_override", overrides.len()));
+    expected.push("end");
+    assert_eq!(kinds, expected);
+    let last = after_birth.last().unwrap();
+    assert!(
+        last.topic.ends_with("/status") && last.json["reason"] == "the bridge stopped",
+        "the goodbye is the last message: {:?}",
+        last.topic
+    );
 }
