@@ -25,6 +25,7 @@ mod nut;
 mod opcua;
 mod outputs;
 mod overrides;
+mod postgres;
 mod profile_view;
 mod profiles;
 mod provenance;

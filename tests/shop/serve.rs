@@ -24,19 +24,33 @@ pub struct Serve {
     pub child: Child,
     pub addr: SocketAddr,
     key: String,
+    /// Where its standard error goes.
+    said: PathBuf,
 }
 
 impl Serve {
-    pub fn start(args: &[&str], db: &Path, dir: &Path) -> Serve {
+    /// `whirl serve ARGS` with the examples as its jobs, recording in `db`, its machine
+    /// locks in `dir`. `home` is its data folder (`XDG_DATA_HOME`), where the spool of a
+    /// PostgreSQL it cannot reach is kept: one a bridge, as on a host of its own, and never
+    /// the user's; its standard error is added to `home/serve.log`, so that a bridge started
+    /// again in the same `home` adds to what the one before it said.
+    pub fn start(args: &[&str], db: &str, home: &Path, dir: &Path) -> Serve {
+        std::fs::create_dir_all(home).unwrap();
+        let said = home.join("serve.log");
+        let log = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&said)
+            .unwrap();
         let mut child = Command::new(env!("CARGO_BIN_EXE_whirl"))
             .args(["serve", "--listen", "127.0.0.1:0", "--jobs"])
             .arg(repo().join("examples"))
             .args(args)
-            .arg("--db")
-            .arg(db)
+            .args(["--db", db])
             .env("WHIRL_LOCK_DIR", dir.join("locks"))
+            .env("XDG_DATA_HOME", home)
             .stdout(Stdio::piped())
-            .stderr(Stdio::null())
+            .stderr(log)
             .spawn()
             .unwrap();
         let addr = http::listening(&mut child);
@@ -44,7 +58,17 @@ impl Serve {
             .as_str()
             .unwrap()
             .to_owned();
-        Serve { child, addr, key }
+        Serve {
+            child,
+            addr,
+            key,
+            said,
+        }
+    }
+
+    /// What it (and any `whirl serve` before it in its `home`) said on standard error.
+    pub fn said(&self) -> String {
+        std::fs::read_to_string(&self.said).unwrap_or_default()
     }
 
     /// An action, as the console's own page sends it.
