@@ -34,6 +34,7 @@ mod sim;
 mod stream;
 mod sweep;
 mod telemetry;
+mod telemetry_tls;
 mod thread_forms;
 mod util;
 mod verify;
