@@ -272,8 +272,8 @@ impl MachineProfile {
     /// Loads and validates a profile file, and reads the drives' data sheets it names
     /// (`connection.drives.eds`, relative to the profile's folder). The telemetry's TLS
     /// files (`telemetry.tls_ca`, …) are found relative to the same folder, and read only
-    /// when the telemetry starts ([`TelemetrySettings::tls`]): a bridge's private key may be
-    /// readable by the bridge's user alone, and `whirl plan` has no need of it.
+    /// when the telemetry starts ([`TelemetrySettings::tls`]): a bridge's private key may
+    /// be readable by the bridge's user alone, and `whirl plan` has no need of it.
     pub fn load(path: &Path) -> Result<MachineProfile, ProfileError> {
         let text = std::fs::read_to_string(path).map_err(|error| ProfileError::Read {
             path: path.to_owned(),

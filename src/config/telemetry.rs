@@ -5,10 +5,10 @@
 //! name: `whirl/lathe-3/state`; a shop's MES may instead (or as well) read each machine as
 //! OPC UA for Machine Tools from the bridge's own OPC UA server. The table says where the
 //! broker is, how to log in and how the bridge keeps its messages while the broker is
-//! away (`crate::telemetry` publishes), how it checks the broker and shows itself over TLS
-//! ([`TelemetrySettings::tls`], `mqtts://`), and where the OPC UA server listens, how it secures
-//! its messages and who may log in (`crate::opcua` serves, [`crate::config::opcua`]
-//! checks). A table names `mqtt`, `opcua` or both.
+//! away (`crate::telemetry` publishes), how it checks the broker and shows itself over
+//! TLS (`mqtts://`, [`TelemetrySettings::tls`]), and where the OPC UA server listens, how
+//! it secures its messages and who may log in (`crate::opcua` serves,
+//! [`crate::config::opcua`] checks). A table names `mqtt`, `opcua` or both.
 //!
 //! ```
 //! use whirl::config::telemetry::TelemetrySettings;
@@ -153,7 +153,8 @@ pub struct Broker {
 }
 
 /// How a bridge speaks TLS to its broker: the roots the broker's certificate must chain
-/// to and the bridge's certificate, as rustls takes them (rumqttc's `TlsConfiguration::Rustls`).
+/// to and the bridge's certificate, as rustls takes them (rumqttc's
+/// `TlsConfiguration::Rustls`).
 pub type TlsConfig = Arc<rustls::ClientConfig>;
 
 /// The keys that say how TLS is spoken, in the order they are checked.

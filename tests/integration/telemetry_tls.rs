@@ -90,8 +90,7 @@ fn text(bytes: &[u8]) -> String {
 }
 
 #[test]
-fn a_dry_run_is_published_over_tls_with_its_certificate_and_read_by_mosquitto_sub_and_the_overview()
-{
+fn a_dry_run_over_tls_logs_in_by_its_certificate_and_mosquitto_sub_and_the_overview_read_it() {
     let Some(shop) = Shop::start() else {
         return;
     };

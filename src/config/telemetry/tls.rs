@@ -1,8 +1,8 @@
-//! The `tls_*` files read into what rustls speaks TLS with: the roots a broker's certificate
-//! must chain to and the bridge's own certificate and key. Read and checked before anything
-//! runs, so that a file that is missing, holds the wrong thing or does not go with its
-//! pair is refused naming its key and path, not found out at the first connection, where
-//! it would only be said as a broker that cannot be reached.
+//! The `tls_*` files read into what rustls speaks TLS with: the roots a broker's
+//! certificate must chain to and the bridge's own certificate and key. Read and checked
+//! before anything runs, so that a file that is missing, holds the wrong thing or does not
+//! go with its pair is refused naming its key and path, not found out at the first
+//! connection, where it would only be said as a broker that cannot be reached.
 //!
 //! The cryptography is ring's, named here rather than taken from rustls's process-wide
 //! default, which exists only when exactly one provider is built in.
@@ -189,47 +189,39 @@ mod tests {
             "garbled.pem",
             "-----BEGIN CERTIFICATE-----\nnot base64!\n-----END CERTIFICATE-----\n",
         );
-        let cases: [(Option<&Path>, Option<(&Path, &Path)>, &str, &Path, &str); 7] = [
-            (Some(&missing), None, "tls_ca", &missing, "cannot read"),
-            (Some(&empty), None, "tls_ca", &empty, "holds no certificate"),
-            (Some(&garbled), None, "tls_ca", &garbled, "is not PEM"),
-            // A key where the certificate belongs holds no certificate, and the other way.
+        let says = |error: TelemetryError, key: &str, path: &Path, what: &str| {
+            assert_eq!(error.key, key, "{error}");
+            assert!(
+                error.problem.contains(&path.display().to_string()) && error.problem.contains(what),
+                "{error}"
+            );
+        };
+        for (bad, what) in [
+            (&missing, "cannot read"),
+            (&empty, "holds no certificate"),
+            (&garbled, "is not PEM"),
+        ] {
+            says(
+                client_config(Some(bad), None).unwrap_err(),
+                "tls_ca",
+                bad,
+                what,
+            );
+        }
+        // A key where the certificate belongs holds no certificate, and the other way.
+        for ((c, k), named, bad, what) in [
+            ((&key, &key), "tls_cert", &key, "no certificate"),
+            ((&cert, &cert), "tls_key", &cert, "no private key"),
+            ((&cert, &missing), "tls_key", &missing, "cannot read"),
             (
-                Some(&ca),
-                Some((&key, &key)),
-                "tls_cert",
-                &key,
-                "no certificate",
-            ),
-            (
-                Some(&ca),
-                Some((&cert, &cert)),
-                "tls_key",
-                &cert,
-                "no private key",
-            ),
-            (
-                Some(&ca),
-                Some((&cert, &missing)),
-                "tls_key",
-                &missing,
-                "cannot read",
-            ),
-            (
-                Some(&ca),
-                Some((&cert, &other_key)),
+                (&cert, &other_key),
                 "tls_key",
                 &other_key,
                 "cannot be used with the certificate",
             ),
-        ];
-        for (ca, client, key, path, says) in cases {
-            let error = client_config(ca, client).unwrap_err();
-            assert_eq!(error.key, key, "{error}");
-            assert!(
-                error.problem.contains(&path.display().to_string()) && error.problem.contains(says),
-                "{error}"
-            );
+        ] {
+            let error = client_config(Some(&ca), Some((c, k))).unwrap_err();
+            says(error, named, bad, what);
         }
     }
 }

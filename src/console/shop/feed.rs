@@ -15,8 +15,8 @@ use crate::config::telemetry::{Broker, TlsConfig};
 /// How long the overview waits before it connects again.
 const RETRY: Duration = Duration::from_secs(1);
 
-/// Follows the broker at `broker` (over TLS with `tls`, logged in as `login`, if given) into
-/// `shop`, until the task is dropped.
+/// Follows the broker at `broker` (over TLS with `tls`, logged in as `login`, if given)
+/// into `shop`, until the task is dropped.
 pub async fn follow(
     shop: Arc<Shop>,
     (broker, tls): (Broker, Option<TlsConfig>),
