@@ -270,7 +270,10 @@ pub enum ProfileError {
 
 impl MachineProfile {
     /// Loads and validates a profile file, and reads the drives' data sheets it names
-    /// (`connection.drives.eds`, relative to the profile's folder).
+    /// (`connection.drives.eds`, relative to the profile's folder). The telemetry's TLS
+    /// files (`telemetry.tls_ca`, …) are found relative to the same folder, and read only
+    /// when the telemetry starts ([`TelemetrySettings::tls`]): a bridge's private key may
+    /// be readable by the bridge's user alone, and `whirl plan` has no need of it.
     pub fn load(path: &Path) -> Result<MachineProfile, ProfileError> {
         let text = std::fs::read_to_string(path).map_err(|error| ProfileError::Read {
             path: path.to_owned(),
@@ -300,7 +303,8 @@ impl MachineProfile {
 
     /// Parses and validates a profile; `origin` names the text's source in errors. The
     /// drives' data sheets it names (`connection.drives.eds`) are read relative to the
-    /// working directory, the text having no folder of its own.
+    /// working directory, the text having no folder of its own, and the telemetry's TLS
+    /// files are found there.
     pub fn from_toml(text: &str, origin: &str) -> Result<MachineProfile, ProfileError> {
         MachineProfile::from_toml_in(text, origin, Path::new(""))
     }
@@ -323,6 +327,7 @@ impl MachineProfile {
                 key,
                 problem,
             })?;
+        profile.telemetry = profile.telemetry.map(|t| t.in_folder(folder));
         if let Some(drives) = profile.connection.as_mut().and_then(Connection::drives_mut) {
             drives
                 .read_data_sheets(folder)

@@ -5,9 +5,10 @@
 //! name: `whirl/lathe-3/state`; a shop's MES may instead (or as well) read each machine as
 //! OPC UA for Machine Tools from the bridge's own OPC UA server. The table says where the
 //! broker is, how to log in and how the bridge keeps its messages while the broker is
-//! away (`crate::telemetry` publishes), and where the OPC UA server listens, how it secures
-//! its messages and who may log in (`crate::opcua` serves, [`crate::config::opcua`]
-//! checks). A table names `mqtt`, `opcua` or both.
+//! away (`crate::telemetry` publishes), how it checks the broker and shows itself over
+//! TLS (`mqtts://`, [`TelemetrySettings::tls`]), and where the OPC UA server listens, how
+//! it secures its messages and who may log in (`crate::opcua` serves,
+//! [`crate::config::opcua`] checks). A table names `mqtt`, `opcua` or both.
 //!
 //! ```
 //! use whirl::config::telemetry::TelemetrySettings;
@@ -29,20 +30,26 @@
 //! assert_eq!(settings.opcua().unwrap().unwrap().url(), "opc.tcp://127.0.0.1:4840/");
 //! ```
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
 use crate::config::opcua::{self, Nameplate, OpcUaSettings, Security};
 
+mod tls;
+
 /// MQTT's registered port for unencrypted connections (IANA).
 pub const MQTT_PORT: u16 = 1883;
+/// MQTT's registered port for connections over TLS (IANA).
+pub const MQTTS_PORT: u16 = 8883;
 
 /// A machine profile's `[telemetry]`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TelemetrySettings {
-    /// The broker, `mqtt://HOST[:PORT]` (port 1883 unless given); absent: no MQTT.
+    /// The broker, `mqtt://HOST[:PORT]` (port 1883 unless given), or `mqtts://HOST[:PORT]`
+    /// over TLS (port 8883 unless given); absent: no MQTT.
     #[serde(default)]
     pub mqtt: Option<String>,
     /// The shop's topic prefix, one or more levels (`whirl`, `plant2/whirling`).
@@ -58,6 +65,20 @@ pub struct TelemetrySettings {
     /// Its password (with `user`).
     #[serde(default)]
     pub password: Option<String>,
+    /// The shop's CA, a PEM file of one or more certificates, that an `mqtts://` broker's
+    /// certificate must be signed by; absent: the system's root certificates. A relative
+    /// path is relative to the profile's folder, as the profile's other files are.
+    #[serde(default)]
+    pub tls_ca: Option<PathBuf>,
+    /// The bridge's own certificate (PEM, any intermediate after it), which a broker that
+    /// asks for one takes as the bridge's login (mosquitto's `use_identity_as_username`);
+    /// with `tls_key`.
+    #[serde(default)]
+    pub tls_cert: Option<PathBuf>,
+    /// Its private key (PEM: PKCS #8, PKCS #1 or SEC 1, not encrypted: the bridge starts
+    /// unattended); with `tls_cert`.
+    #[serde(default)]
+    pub tls_key: Option<PathBuf>,
     /// MQTT keep-alive, s: the broker publishes the bridge's last will (offline) when it
     /// has heard nothing for one and a half times this.
     #[serde(default = "default_keepalive")]
@@ -126,7 +147,18 @@ pub struct Broker {
     pub host: String,
     /// TCP port.
     pub port: u16,
+    /// Spoken to over TLS (`mqtts://`): its certificate checked, and the bridge's shown
+    /// if it has one ([`TelemetrySettings::tls`]).
+    pub tls: bool,
 }
+
+/// How a bridge speaks TLS to its broker: the roots the broker's certificate must chain
+/// to and the bridge's certificate, as rustls takes them (rumqttc's
+/// `TlsConfiguration::Rustls`).
+pub type TlsConfig = Arc<rustls::ClientConfig>;
+
+/// The keys that say how TLS is spoken, in the order they are checked.
+const TLS_KEYS: [&str; 3] = ["tls_ca", "tls_cert", "tls_key"];
 
 /// A `[telemetry]` value that cannot be used: the key and what is wrong.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -170,6 +202,9 @@ impl TelemetrySettings {
             machine: None,
             user: None,
             password: None,
+            tls_ca: None,
+            tls_cert: None,
+            tls_key: None,
             keepalive_s: default_keepalive(),
             queue: default_queue(),
             progress_interval_s: default_progress_interval(),
@@ -192,7 +227,21 @@ impl TelemetrySettings {
         self
     }
 
-    /// The broker's host and port from `mqtt`; `None` without one.
+    /// These settings with their files' relative paths made relative to `folder` (the
+    /// profile's), as a profile's other files are: a bridge started from any working
+    /// directory finds the certificates that ship beside its profile.
+    pub fn in_folder(mut self, folder: &Path) -> TelemetrySettings {
+        for path in [&mut self.tls_ca, &mut self.tls_cert, &mut self.tls_key]
+            .into_iter()
+            .flatten()
+        {
+            *path = folder.join(&*path);
+        }
+        self
+    }
+
+    /// The broker's host and port from `mqtt`, and whether it is spoken to over TLS; `None`
+    /// without one.
     pub fn broker(&self) -> Result<Option<Broker>, TelemetryError> {
         let Some(mqtt) = &self.mqtt else {
             return Ok(None);
@@ -200,19 +249,25 @@ impl TelemetrySettings {
         let url = url::Url::parse(mqtt).map_err(|e| {
             invalid(
                 "mqtt",
-                format!("\"{mqtt}\" is not a URL ({e}): give mqtt://HOST[:PORT]"),
+                format!(
+                    "\"{mqtt}\" is not a URL ({e}): give mqtt://HOST[:PORT] or \
+                     mqtts://HOST[:PORT]"
+                ),
             )
         })?;
-        if url.scheme() != "mqtt" {
-            return Err(invalid(
-                "mqtt",
-                format!(
-                    "\"{mqtt}\": the scheme must be mqtt:// (a broker's unencrypted port); \
-                     {}:// is not spoken",
-                    url.scheme()
-                ),
-            ));
-        }
+        let (tls, default_port) = match url.scheme() {
+            "mqtt" => (false, MQTT_PORT),
+            "mqtts" => (true, MQTTS_PORT),
+            scheme => {
+                return Err(invalid(
+                    "mqtt",
+                    format!(
+                        "\"{mqtt}\": the scheme must be mqtt:// (a broker's unencrypted port) \
+                         or mqtts:// (over TLS); {scheme}:// is not spoken"
+                    ),
+                ))
+            }
+        };
         let extra = !url.username().is_empty()
             || url.password().is_some()
             || !matches!(url.path(), "" | "/")
@@ -222,8 +277,9 @@ impl TelemetrySettings {
             return Err(invalid(
                 "mqtt",
                 format!(
-                    "\"{mqtt}\" says more than mqtt://HOST[:PORT]: a user and a password go \
-                     in `user` and `password`, the topic prefix in `prefix`"
+                    "\"{mqtt}\" says more than {}://HOST[:PORT]: a user and a password go \
+                     in `user` and `password`, the topic prefix in `prefix`",
+                    url.scheme()
                 ),
             ));
         }
@@ -234,8 +290,70 @@ impl TelemetrySettings {
         };
         Ok(Some(Broker {
             host,
-            port: url.port().unwrap_or(MQTT_PORT),
+            port: url.port().unwrap_or(default_port),
+            tls,
         }))
+    }
+
+    /// How the broker is spoken to over TLS: `None` for an `mqtt://` broker (or none); for
+    /// `mqtts://`, the roots its certificate must chain to (`tls_ca`'s, else the system's)
+    /// and the bridge's certificate (`tls_cert` and `tls_key`), their files read now. Every
+    /// refusal names the key and the file: a `tls_*` key with an `mqtt://` broker, a file
+    /// that cannot be read or holds no certificate or key, a key that is not the
+    /// certificate's, a system without root certificates when `tls_ca` is absent.
+    pub fn tls(&self) -> Result<Option<TlsConfig>, TelemetryError> {
+        let broker = self.broker()?;
+        self.check_tls_keys(broker.as_ref())?;
+        if !broker.is_some_and(|b| b.tls) {
+            return Ok(None);
+        }
+        let client = self.tls_cert.as_deref().zip(self.tls_key.as_deref());
+        tls::client_config(self.tls_ca.as_deref(), client).map(Some)
+    }
+
+    /// The `tls_*` keys together and with the broker's scheme, no file read: a profile's
+    /// loading checks them so, [`TelemetrySettings::tls`] again with `--mqtt`'s broker.
+    fn check_tls_keys(&self, broker: Option<&Broker>) -> Result<(), TelemetryError> {
+        let paths = [&self.tls_ca, &self.tls_cert, &self.tls_key];
+        for (key, path) in TLS_KEYS.into_iter().zip(paths) {
+            let Some(path) = path else { continue };
+            if path.as_os_str().is_empty() {
+                return Err(invalid(key, "names no file"));
+            }
+            match broker {
+                None => {
+                    return Err(invalid(
+                        key,
+                        "is how the MQTT broker is spoken to over TLS: give `mqtt` too, \
+                         mqtts://HOST[:PORT]",
+                    ))
+                }
+                Some(broker) if !broker.tls => {
+                    return Err(invalid(
+                        key,
+                        format!(
+                            "is for a broker spoken to over TLS, and \"{}\" is not: give \
+                             mqtts://HOST[:PORT], the broker's TLS listener",
+                            self.mqtt.as_deref().unwrap_or_default(),
+                        ),
+                    ))
+                }
+                Some(_) => {}
+            }
+        }
+        match (&self.tls_cert, &self.tls_key) {
+            (Some(_), None) => Err(invalid(
+                "tls_cert",
+                "a certificate shows who the bridge is only with its private key: give \
+                 `tls_key` too",
+            )),
+            (None, Some(_)) => Err(invalid(
+                "tls_key",
+                "a private key is shown to the broker with its certificate: give `tls_cert` \
+                 too",
+            )),
+            _ => Ok(()),
+        }
     }
 
     /// The OPC UA server's settings from `opcua` and the `opcua_*` keys, checked; `None`
@@ -284,7 +402,8 @@ impl TelemetrySettings {
                  `opcua` (an OPC UA server of the bridge's own) or both",
             ));
         }
-        self.broker()?;
+        let broker = self.broker()?;
+        self.check_tls_keys(broker.as_ref())?;
         self.opcua()?;
         if self.mqtt.is_none() {
             for (key, given) in [
@@ -384,12 +503,51 @@ mod tests {
             s.broker().unwrap(),
             Some(Broker {
                 host: "10.0.0.5".into(),
-                port: 1883
+                port: 1883,
+                tls: false,
             })
         );
         let s = TelemetrySettings::for_broker("mqtt://[::1]:18830");
         let broker = s.broker().unwrap().unwrap();
         assert_eq!((broker.host.as_str(), broker.port), ("::1", 18830));
+    }
+
+    #[test]
+    fn a_tls_broker_without_a_port_is_on_mqtts_registered_8883() {
+        let s = TelemetrySettings::for_broker("mqtts://broker.shop.lan");
+        assert_eq!(
+            s.broker().unwrap(),
+            Some(Broker {
+                host: "broker.shop.lan".into(),
+                port: 8883,
+                tls: true,
+            })
+        );
+        let broker = TelemetrySettings::for_broker("mqtts://[::1]:18883")
+            .broker()
+            .unwrap()
+            .unwrap();
+        assert_eq!(
+            (broker.host.as_str(), broker.port, broker.tls),
+            ("::1", 18883, true)
+        );
+        // A plain broker speaks no TLS, whatever the files.
+        assert!(TelemetrySettings::for_broker("mqtt://b")
+            .tls()
+            .unwrap()
+            .is_none());
+    }
+
+    #[test]
+    fn tls_files_are_relative_to_the_profiles_folder() {
+        let s = settings(
+            "mqtt = \"mqtts://b\"\ntls_ca = \"ca.pem\"\ntls_cert = \"/etc/whirl/l.crt\"\n\
+             tls_key = \"keys/l.key\"",
+        )
+        .in_folder(Path::new("/srv/profiles"));
+        assert_eq!(s.tls_ca, Some(PathBuf::from("/srv/profiles/ca.pem")));
+        assert_eq!(s.tls_cert, Some(PathBuf::from("/etc/whirl/l.crt")));
+        assert_eq!(s.tls_key, Some(PathBuf::from("/srv/profiles/keys/l.key")));
     }
 
     #[test]
@@ -449,6 +607,15 @@ mod tests {
             ("mqtt = \"mqtt://b\"\nprefix = \"shop/#\"", "prefix"),
             ("mqtt = \"mqtt://b\"\nmachine = \"***\"", "machine"),
             ("mqtt = \"mqtt://b\"\npassword = \"p\"", "password"),
+            ("mqtt = \"mqtt://b\"\ntls_ca = \"ca.pem\"", "tls_ca"),
+            (
+                "mqtt = \"mqtt://b\"\ntls_cert = \"l.crt\"\ntls_key = \"l.key\"",
+                "tls_cert",
+            ),
+            ("mqtt = \"mqtts://b\"\ntls_cert = \"l.crt\"", "tls_cert"),
+            ("mqtt = \"mqtts://b\"\ntls_key = \"l.key\"", "tls_key"),
+            ("mqtt = \"mqtts://b\"\ntls_ca = \"\"", "tls_ca"),
+            ("opcua = \"127.0.0.1\"\ntls_ca = \"ca.pem\"", "tls_ca"),
             ("mqtt = \"mqtt://b\"\nkeepalive_s = 0", "keepalive_s"),
             ("mqtt = \"mqtt://b\"\nkeepalive_s = 70000", "keepalive_s"),
             ("mqtt = \"mqtt://b\"\nqueue = 0", "queue"),

@@ -20,5 +20,5 @@ pub mod mqtt;
 pub mod outbox;
 pub mod tracker;
 
-pub use mqtt::{Closed, Handle, Observer, Telemetry};
+pub use mqtt::{Closed, Handle, Observer, StartError, Telemetry};
 pub use tracker::RunContext;

@@ -5,7 +5,9 @@
 //! ever full, the message is counted as lost and the run goes on.
 //!
 //! A connection lost is said once (a warning), retried every one to five seconds while
-//! the outbox keeps the events, and said again when it is back. The bridge's birth and its
+//! the outbox keeps the events, and said again when it is back. A broker over TLS whose
+//! certificate does not verify, or that refuses the bridge's, is such a connection lost:
+//! said once with what TLS said, and retried, the run going on. The bridge's birth and its
 //! last will are retained on `status`, so a bridge that dies is shown offline by the broker
 //! once one and a half keep-alives pass without a word from it.
 //!
@@ -17,11 +19,14 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-use rumqttc::{AsyncClient, ConnectionError, Event, LastWill, MqttOptions, Outgoing, Packet, QoS};
+use rumqttc::{
+    AsyncClient, ConnectionError, Event, LastWill, MqttOptions, Outgoing, Packet, QoS,
+    TlsConfiguration, Transport,
+};
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
 
-use crate::config::telemetry::TelemetrySettings;
+use crate::config::telemetry::{TelemetryError, TelemetrySettings, TlsConfig};
 use crate::log::{self, Record, Tap};
 use crate::records::{Process, Timestamp};
 use crate::telemetry::message::{self, Command, Status};
@@ -72,6 +77,19 @@ struct Identity {
     status: Status,
 }
 
+/// Why a bridge's telemetry did not start.
+#[derive(Debug, thiserror::Error)]
+pub enum StartError {
+    /// A TLS file that cannot be used, its key and path named. A caller that checked the
+    /// settings before its run ([`TelemetrySettings::tls`]) sees this only for a file
+    /// changed since.
+    #[error("[telemetry] {0}")]
+    Tls(#[from] TelemetryError),
+    /// The thread could not be made.
+    #[error("cannot start the telemetry thread: {0}")]
+    Thread(#[from] std::io::Error),
+}
+
 /// A bridge's telemetry, publishing from a thread of its own until [`Telemetry::close`].
 pub struct Telemetry {
     handle: Handle,
@@ -100,8 +118,9 @@ impl std::fmt::Debug for Handle {
 impl Telemetry {
     /// Starts publishing the machine named `machine` (its profile's name) with `settings`,
     /// which must be valid ([`TelemetrySettings::validate`]: a profile's loading checks
-    /// them). The machine is announced online and idle as soon as the broker answers.
-    pub fn start(settings: &TelemetrySettings, machine: &str) -> std::io::Result<Telemetry> {
+    /// them). The machine is announced online and idle as soon as the broker answers. An
+    /// `mqtts://` broker's TLS files are read here, once.
+    pub fn start(settings: &TelemetrySettings, machine: &str) -> Result<Telemetry, StartError> {
         Telemetry::start_observed(settings, machine, None)
     }
 
@@ -112,7 +131,8 @@ impl Telemetry {
         settings: &TelemetrySettings,
         machine: &str,
         observer: Option<Observer>,
-    ) -> std::io::Result<Telemetry> {
+    ) -> Result<Telemetry, StartError> {
+        let tls = settings.tls()?;
         let session = session_word();
         let identity = Identity {
             root: settings.topic_root(machine),
@@ -148,7 +168,7 @@ impl Telemetry {
                     .build()
                     .expect("a runtime of one thread builds");
                 let mut closed = runtime.block_on(publish(
-                    &settings,
+                    (&settings, tls),
                     identity,
                     receiver,
                     observer.as_ref(),
@@ -331,9 +351,9 @@ async fn until(at: Option<Instant>) {
 }
 
 /// The thread's work: follow the run, hand its messages to the observer, keep the outbox,
-/// hold a connection to the broker (if there is one).
+/// hold a connection to the broker (if there is one), over TLS with `tls` if given.
 async fn publish(
-    settings: &TelemetrySettings,
+    (settings, tls): (&TelemetrySettings, Option<TlsConfig>),
     identity: Identity,
     mut inputs: mpsc::Receiver<Input>,
     observer: Option<&Observer>,
@@ -372,6 +392,9 @@ async fn publish(
             ));
         if let Some(user) = &settings.user {
             options.set_credentials(user, settings.password.clone().unwrap_or_default());
+        }
+        if let Some(tls) = tls {
+            options.set_transport(Transport::tls_with_config(TlsConfiguration::Rustls(tls)));
         }
         options
     });

@@ -35,6 +35,7 @@ mod sim;
 mod stream;
 mod sweep;
 mod telemetry;
+mod telemetry_tls;
 mod thread_forms;
 mod util;
 mod verify;

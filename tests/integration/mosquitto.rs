@@ -1,7 +1,9 @@
 //! A real MQTT broker for the telemetry tests: Debian's mosquitto, started on a free
 //! loopback port with a configuration of the test's own, stopped and started again on the
 //! same port (its retained messages and persistent sessions kept on disk), and a
-//! subscriber that keeps its session across the broker's restarts.
+//! subscriber that keeps its session across the broker's restarts. A broker may listen
+//! over TLS, taking each client's certificate as its login, with certificates a test makes
+//! ([`Authority`]).
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -18,6 +20,8 @@ pub struct Mosquitto {
     pub port: u16,
     conf: PathBuf,
     pub dir: tempfile::TempDir,
+    /// Its listener speaks TLS.
+    tls: bool,
 }
 
 impl Mosquitto {
@@ -25,6 +29,21 @@ impl Mosquitto {
     /// mosquitto is not installed, which with `CI` set fails the test instead.
     pub fn start() -> Option<Mosquitto> {
         Mosquitto::with("allow_anonymous true\n")
+    }
+
+    /// A broker over TLS, as a shop that logs its machines in by their certificates runs
+    /// one: its own certificate and key `server`, a client's certificate required and
+    /// signed by the CA in the PEM file `ca`, its common name the client's user name.
+    pub fn tls(ca: &Path, server: (&Path, &Path)) -> Option<Mosquitto> {
+        let mut broker = Mosquitto::with(&format!(
+            "cafile {}\ncertfile {}\nkeyfile {}\nrequire_certificate true\n\
+             use_identity_as_username true\nallow_anonymous false\n",
+            ca.display(),
+            server.0.display(),
+            server.1.display()
+        ))?;
+        broker.tls = true;
+        Some(broker)
     }
 
     /// A broker with `settings` (mosquitto.conf lines) beside its listener and its
@@ -63,6 +82,7 @@ impl Mosquitto {
             port,
             conf,
             dir,
+            tls: false,
         };
         broker.run();
         Some(broker)
@@ -74,9 +94,10 @@ impl Mosquitto {
         self.child.as_ref().map(Child::id)
     }
 
-    /// `mqtt://127.0.0.1:PORT`.
+    /// `mqtt://127.0.0.1:PORT`, or `mqtts://…` over TLS.
     pub fn url(&self) -> String {
-        format!("mqtt://127.0.0.1:{}", self.port)
+        let scheme = if self.tls { "mqtts" } else { "mqtt" };
+        format!("{scheme}://127.0.0.1:{}", self.port)
     }
 
     /// Starts it (again), and waits until it listens.
@@ -130,6 +151,84 @@ impl Mosquitto {
             .expect("mosquitto_passwd runs");
         assert!(made.success());
         file
+    }
+}
+
+/// A shop's certificate authority, made for a test: its certificate in a PEM file (a
+/// broker's `cafile`, a bridge's `tls_ca`) and the certificates it signs, for a broker or a
+/// client, each with its key beside it.
+pub struct Authority {
+    issuer: rcgen::CertifiedIssuer<'static, rcgen::KeyPair>,
+    dir: PathBuf,
+    /// Its certificate, PEM.
+    pub ca: PathBuf,
+}
+
+impl Authority {
+    /// A CA named `name`, its certificate written to `dir/NAME-ca.pem`.
+    pub fn new(dir: &Path, name: &str) -> Authority {
+        let mut params = rcgen::CertificateParams::new(Vec::<String>::new()).unwrap();
+        params.distinguished_name = rcgen::DistinguishedName::new();
+        params
+            .distinguished_name
+            .push(rcgen::DnType::CommonName, format!("{name} CA"));
+        params.is_ca = rcgen::IsCa::Ca(rcgen::BasicConstraints::Unconstrained);
+        params.key_usages = vec![
+            rcgen::KeyUsagePurpose::KeyCertSign,
+            rcgen::KeyUsagePurpose::CrlSign,
+        ];
+        let issuer =
+            rcgen::CertifiedIssuer::self_signed(params, rcgen::KeyPair::generate().unwrap())
+                .unwrap();
+        let ca = dir.join(format!("{name}-ca.pem"));
+        std::fs::write(&ca, issuer.pem()).unwrap();
+        Authority {
+            issuer,
+            dir: dir.to_owned(),
+            ca,
+        }
+    }
+
+    /// A broker's certificate for `names` (host names and IP addresses it is reached at),
+    /// `dir/FILE.crt`, and its key, `dir/FILE.key`.
+    pub fn server(&self, file: &str, names: &[&str]) -> (PathBuf, PathBuf) {
+        self.issue(
+            file,
+            names[0],
+            names,
+            rcgen::ExtendedKeyUsagePurpose::ServerAuth,
+        )
+    }
+
+    /// A client's certificate whose common name is `name` (its user name on a broker that
+    /// takes the certificate as the login), `dir/NAME.crt`, and its key, `dir/NAME.key`.
+    pub fn client(&self, name: &str) -> (PathBuf, PathBuf) {
+        self.issue(name, name, &[], rcgen::ExtendedKeyUsagePurpose::ClientAuth)
+    }
+
+    fn issue(
+        &self,
+        file: &str,
+        common_name: &str,
+        names: &[&str],
+        usage: rcgen::ExtendedKeyUsagePurpose,
+    ) -> (PathBuf, PathBuf) {
+        let names: Vec<String> = names.iter().map(|n| n.to_string()).collect();
+        let mut params = rcgen::CertificateParams::new(names).unwrap();
+        params.distinguished_name = rcgen::DistinguishedName::new();
+        params
+            .distinguished_name
+            .push(rcgen::DnType::CommonName, common_name);
+        params.extended_key_usages = vec![usage];
+        let key = rcgen::KeyPair::generate().unwrap();
+        let certificate = params.signed_by(&key, &self.issuer).unwrap();
+        let (cert, key_file) = (
+            self.dir.join(format!("{file}.crt")),
+            self.dir.join(format!("{file}.key")),
+        );
+        std::fs::write(&cert, certificate.pem()).unwrap();
+        std::fs::write(&key_file, key.serialize_pem()).unwrap();
+        (cert, key_file)
     }
 }
 

@@ -1,7 +1,8 @@
 //! Live telemetry against a real broker (mosquitto) and an independent subscriber
 //! (mosquitto_sub): what a run publishes is what docs/shop.md says; a broker that is down,
 //! never answers or refuses the login never slows or stops a run; what the broker missed
-//! arrives when it is back, each message once and in order.
+//! arrives when it is back, each message once and in order. The same over TLS, with
+//! certificates as the logins: `telemetry_tls.rs`, which shares the helpers here.
 
 use std::ffi::OsStr;
 use std::io::BufRead;
@@ -28,12 +29,13 @@ const ROOT: &str = "whirl/whirl-sim-simulated-xzc-whirling-lathe";
 
 /// How long a test waits for messages a broker has taken to reach its subscriber: they
 /// come in milliseconds; the margin is a busy host's.
-const DELIVERY: Duration = Duration::from_secs(30);
+pub(crate) const DELIVERY: Duration = Duration::from_secs(30);
 
 /// mosquitto_sub on `broker`, subscribed to `whirl/#` at QoS 1, each message a line of
 /// topic, QoS, retained flag and payload; its lines come over the channel. It is known to
-/// be subscribed once a probe published after its start has come back.
-fn mosquitto_sub(
+/// be subscribed once a probe published after its start has come back. `extra`: more of
+/// its options (over TLS, the CA and the subscriber's certificate and key).
+pub(crate) fn mosquitto_sub(
     broker: &Mosquitto,
     extra: &[&str],
 ) -> (std::process::Child, mpsc::Receiver<String>) {
@@ -68,7 +70,7 @@ fn mosquitto_sub(
 }
 
 /// One line of mosquitto_sub: (topic, QoS, retained, payload).
-fn parse(line: &str) -> (String, u8, bool, Value) {
+pub(crate) fn parse(line: &str) -> (String, u8, bool, Value) {
     let mut fields = line.splitn(4, '\t');
     let mut next = || fields.next().unwrap_or_else(|| panic!("{line}"));
     let topic = next().to_owned();
@@ -78,8 +80,9 @@ fn parse(line: &str) -> (String, u8, bool, Value) {
     (topic, qos, retained, payload)
 }
 
-/// Waits until mosquitto_sub has subscribed: publishes a probe until it comes back.
-fn until_subscribed(broker: &Mosquitto, lines: &mpsc::Receiver<String>) {
+/// Waits until mosquitto_sub has subscribed: publishes a probe until it comes back, with
+/// mosquitto_pub's `login` options (over TLS, the CA and a certificate and key).
+pub(crate) fn until_subscribed(broker: &Mosquitto, lines: &mpsc::Receiver<String>, login: &[&str]) {
     let started = Instant::now();
     loop {
         assert!(
@@ -97,6 +100,7 @@ fn until_subscribed(broker: &Mosquitto, lines: &mpsc::Receiver<String>) {
                 "-m",
                 "{}",
             ])
+            .args(login)
             .status()
             .unwrap();
         if let Ok(line) = lines.recv_timeout(Duration::from_millis(200)) {
@@ -106,7 +110,11 @@ fn until_subscribed(broker: &Mosquitto, lines: &mpsc::Receiver<String>) {
     }
 }
 
-fn dry_run_args<'a>(dir: &'a std::path::Path, extra: &[&'a str]) -> Vec<std::ffi::OsString> {
+/// `whirl dry-run` of the double-start example, its report in `dir`, with `extra`.
+pub(crate) fn dry_run_args<'a>(
+    dir: &'a std::path::Path,
+    extra: &[&'a str],
+) -> Vec<std::ffi::OsString> {
     let mut args: Vec<std::ffi::OsString> = vec![
         "dry-run".into(),
         util::example("double-start").into(),
@@ -117,7 +125,8 @@ fn dry_run_args<'a>(dir: &'a std::path::Path, extra: &[&'a str]) -> Vec<std::ffi
     args
 }
 
-fn whirl(args: &[std::ffi::OsString]) -> (std::process::Output, Value) {
+/// `whirl` with `args` (from [`dry_run_args`]): what it said, and the report it wrote.
+pub(crate) fn whirl(args: &[std::ffi::OsString]) -> (std::process::Output, Value) {
     let dir = std::path::Path::new(args[3].as_os_str());
     let refs: Vec<&OsStr> = args.iter().map(|a| a.as_os_str()).collect();
     let output = util::whirl(&refs);
@@ -132,7 +141,7 @@ fn a_dry_run_is_published_as_documented_and_mosquitto_sub_reads_it() {
         return;
     };
     let (mut sub, lines) = mosquitto_sub(&broker, &[]);
-    until_subscribed(&broker, &lines);
+    until_subscribed(&broker, &lines, &[]);
     let dir = tempfile::tempdir().unwrap();
     let (output, report) = whirl(&dry_run_args(dir.path(), &["--mqtt", &broker.url()]));
     assert!(
@@ -243,7 +252,7 @@ fn a_dry_run_is_published_as_documented_and_mosquitto_sub_reads_it() {
 }
 
 /// The report's figures a run's telemetry must not change.
-fn run_figures(report: &Value) -> (Value, Value, Value) {
+pub(crate) fn run_figures(report: &Value) -> (Value, Value, Value) {
     (
         report["lines_acked"].clone(),
         report["machine_time_s"].clone(),

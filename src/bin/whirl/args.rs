@@ -110,7 +110,8 @@ pub(crate) enum Command {
         /// program is refused before anything is opened (docs/streaming.md#provenance).
         #[arg(long)]
         no_provenance_check: bool,
-        /// Publish the machine's live state to this MQTT broker, mqtt://HOST[:PORT], in
+        /// Publish the machine's live state to this MQTT broker, mqtt://HOST[:PORT] or
+        /// mqtts://HOST[:PORT] (TLS, with the profile's `tls_*` files if it names them), in
         /// place of the machine profile's `[telemetry] mqtt` (docs/shop.md). A broker that
         /// cannot be reached never slows or stops the run.
         #[arg(long, value_name = "URL")]
@@ -162,7 +163,8 @@ pub(crate) enum Command {
         /// --feed-override` (refused above the cusp's cap); on a terminal, + - 0 change it.
         #[arg(long, value_name = "PERCENT")]
         feed_override: Option<u16>,
-        /// Publish the machine's live state to this MQTT broker, mqtt://HOST[:PORT], in
+        /// Publish the machine's live state to this MQTT broker, mqtt://HOST[:PORT] or
+        /// mqtts://HOST[:PORT] (TLS, with the profile's `tls_*` files if it names them), in
         /// place of the machine profile's `[telemetry] mqtt` (docs/shop.md). A broker that
         /// cannot be reached never slows or stops the run.
         #[arg(long, value_name = "URL")]
@@ -207,10 +209,23 @@ pub(crate) enum Command {
         #[arg(long, default_value = "whirl", requires = "shop")]
         prefix: String,
         /// Publish the live state of every machine the console runs to this MQTT broker,
-        /// mqtt://HOST[:PORT], in place of each profile's `[telemetry] mqtt`
-        /// (docs/shop.md). A broker that cannot be reached never slows or stops a run.
+        /// mqtt://HOST[:PORT] or mqtts://HOST[:PORT] (TLS, with each profile's `tls_*`
+        /// files), in place of each profile's `[telemetry] mqtt` (docs/shop.md). A broker
+        /// that cannot be reached never slows or stops a run. With --shop, the broker the
+        /// overview reads.
         #[arg(long, value_name = "URL")]
         mqtt: Option<String>,
+        /// With --shop and an mqtts:// broker: the shop's CA (PEM) the broker's certificate
+        /// must be signed by; default: the system's root certificates.
+        #[arg(long, value_name = "FILE", requires = "shop")]
+        tls_ca: Option<PathBuf>,
+        /// With --shop and an mqtts:// broker: the overview's certificate (PEM), its login
+        /// on a broker that takes certificates as logins; with --tls-key.
+        #[arg(long, value_name = "FILE", requires_all = ["shop", "tls_key"])]
+        tls_cert: Option<PathBuf>,
+        /// The private key (PEM, not encrypted) of --tls-cert.
+        #[arg(long, value_name = "FILE", requires_all = ["shop", "tls_cert"])]
+        tls_key: Option<PathBuf>,
         /// Serve every machine the console runs as OPC UA for Machine Tools at
         /// opc.tcp://HOST:PORT (HOST an address of this host; port 0: any free one,
         /// printed at start), in place of the profiles' `[telemetry] opcua` (docs/opcua.md).

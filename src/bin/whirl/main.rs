@@ -190,6 +190,9 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             shop,
             prefix,
             mqtt,
+            tls_ca,
+            tls_cert,
+            tls_key,
             opcua,
         } => {
             let listen = serve::Listen {
@@ -199,7 +202,14 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             };
             let records = (cli.db.as_deref(), cli.allow_unrecorded);
             match (shop, mqtt.as_deref()) {
-                (true, Some(mqtt)) => serve::shop(&jobs, listen, records, (mqtt, &prefix)),
+                (true, Some(mqtt)) => {
+                    let broker = serve::ShopBroker {
+                        mqtt,
+                        prefix: &prefix,
+                        tls: [tls_ca, tls_cert, tls_key],
+                    };
+                    serve::shop(&jobs, listen, records, broker)
+                }
                 _ => serve::run(
                     &machines,
                     &jobs,

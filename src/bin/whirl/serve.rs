@@ -103,7 +103,7 @@ pub(crate) fn run(
             .or_else(|| profile.telemetry.clone())
             .unwrap_or_else(TelemetrySettings::nowhere);
         let started = Telemetry::start_observed(&settings, &profile.name, observer)
-            .context("cannot start the telemetry thread")?;
+            .with_context(|| format!("the machine profile {}", profile.name))?;
         telemetry.push((profile.name.clone(), started));
     }
     let machines = machines(profiles).map_err(anyhow::Error::msg)?;
@@ -196,27 +196,49 @@ async fn bind(
     ))
 }
 
-/// `whirl serve --shop`: the shop overview of the machines publishing under `prefix` on the
-/// broker at `mqtt`, and the history in the run records, until a signal ends it.
+/// The overview's broker: `--mqtt`, and over TLS the files `--tls-ca`, `--tls-cert` and
+/// `--tls-key` (relative to the working directory).
+pub(crate) struct ShopBroker<'a> {
+    pub(crate) mqtt: &'a str,
+    pub(crate) prefix: &'a str,
+    pub(crate) tls: [Option<PathBuf>; 3],
+}
+
+/// `whirl serve --shop`: the shop overview of the machines publishing under the prefix on
+/// the broker, and the history in the run records, until a signal ends it. The broker's
+/// address, the prefix and the TLS files are refused before anything listens, naming the
+/// option.
 pub(crate) fn shop(
     jobs: &std::path::Path,
     listen: Listen<'_>,
     (db, allow_unrecorded): (Option<&str>, bool),
-    (mqtt, prefix): (&str, &str),
+    broker: ShopBroker<'_>,
 ) -> Result<ExitCode> {
     let token = listen.token.map(Token::new).transpose()?;
     check_listen(listen.address, token.as_ref())?;
+    let [tls_ca, tls_cert, tls_key] = broker.tls;
+    let prefix = broker.prefix;
     let settings = TelemetrySettings {
         prefix: prefix.to_owned(),
-        ..TelemetrySettings::for_broker(mqtt)
+        tls_ca,
+        tls_cert,
+        tls_key,
+        ..TelemetrySettings::for_broker(broker.mqtt)
     };
+    // Each refusal names the option it came from (`tls_ca` is `--tls-ca`).
+    let option = |key: &str| match key {
+        "mqtt" => "--mqtt".to_owned(),
+        key => format!("--{}", key.replace('_', "-")),
+    };
+    let refused = |e: whirl::config::telemetry::TelemetryError| {
+        anyhow::anyhow!("{}: {}", option(&e.key), e.problem)
+    };
+    settings.validate().map_err(refused)?;
     let broker = settings
         .broker()
-        .map_err(|e| anyhow::anyhow!("--mqtt: {}", e.problem))?
+        .map_err(refused)?
         .expect("for_broker names a broker");
-    settings
-        .validate()
-        .map_err(|e| anyhow::anyhow!("--prefix: {}", e.problem))?;
+    let tls = settings.tls().map_err(refused)?;
     let jobs = JobDir::open(jobs)
         .with_context(|| format!("the jobs folder (--jobs) {}", jobs.display()))?;
     let mut console = Console::new(Default::default(), jobs);
@@ -226,7 +248,7 @@ pub(crate) fn shop(
     runtime.block_on(async move {
         console.records = records(db, allow_unrecorded).await?;
         let shop = Arc::new(Shop::new(prefix, listen.token.map(str::to_owned)));
-        let following = tokio::spawn(feed::follow(Arc::clone(&shop), broker, None));
+        let following = tokio::spawn(feed::follow(Arc::clone(&shop), (broker, tls), None));
         let (listener, address, edge) = bind(&listen, token).await?;
         say!("whirl serve --shop: the shop overview is at http://{address}/ (Ctrl-C ends it)")?;
         let app = whirl::console::shop::page::router(shop, Arc::new(console), Arc::clone(&edge));

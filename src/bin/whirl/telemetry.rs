@@ -1,7 +1,7 @@
 //! `--mqtt` and a profile's `[telemetry]`: the live telemetry of a command's run, started
 //! before the run and closed after it (docs/shop.md).
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use whirl::config::machine::MachineProfile;
 use whirl::config::telemetry::TelemetrySettings;
 use whirl::log::ExecLog;
@@ -11,8 +11,9 @@ use whirl::transport::ProgressFn;
 use crate::terminal::warn;
 
 /// The settings a run publishes with: the profile's `[telemetry]` with `--mqtt` over its
-/// broker, or `--mqtt` alone; `None` for no broker. A bad `--mqtt` is refused here, before
-/// anything is opened.
+/// broker (its `tls_*` keys kept for an `mqtts://` one), or `--mqtt` alone; `None` for no
+/// broker. A bad `--mqtt` is refused here, before anything is opened, and so are TLS files
+/// that cannot be used (read here for that, and again when the telemetry starts).
 pub(crate) fn settings(
     machine: &MachineProfile,
     mqtt: Option<&str>,
@@ -20,12 +21,15 @@ pub(crate) fn settings(
     let settings = match (&machine.telemetry, mqtt) {
         (Some(profile), Some(url)) => profile.clone().with_broker(url),
         (None, Some(url)) => TelemetrySettings::for_broker(url),
-        (Some(profile), None) if profile.mqtt.is_some() => return Ok(Some(profile.clone())),
+        (Some(profile), None) if profile.mqtt.is_some() => profile.clone(),
         // A `[telemetry]` with `opcua` alone: only `whirl serve` serves it.
         (_, None) => return Ok(None),
     };
-    if let Err(e) = settings.broker() {
+    if let (Some(_), Err(e)) = (mqtt, settings.broker()) {
         anyhow::bail!("--mqtt: {}", e.problem);
+    }
+    if let Err(e) = settings.tls() {
+        anyhow::bail!("the machine profile {}: [telemetry] {e}", machine.name);
     }
     Ok(Some(settings))
 }
@@ -40,8 +44,7 @@ impl Live {
         machine: &MachineProfile,
         context: RunContext,
     ) -> Result<Live> {
-        let telemetry = Telemetry::start(settings, &machine.name)
-            .context("cannot start the telemetry thread")?;
+        let telemetry = Telemetry::start(settings, &machine.name)?;
         telemetry.handle().prepare(context);
         Ok(Live(telemetry))
     }

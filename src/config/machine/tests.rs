@@ -138,6 +138,44 @@ fn a_profiles_telemetry_is_read_and_a_bad_one_refused_naming_its_key() {
     );
 }
 
+#[test]
+fn a_profiles_tls_files_are_found_beside_it_and_read_only_when_telemetry_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("lathe3.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "{SIM}\n[telemetry]\nmqtt = \"mqtts://broker.shop.lan\"\ntls_ca = \"pki/ca.pem\"\n\
+             tls_cert = \"/etc/whirl/lathe3.crt\"\ntls_key = \"/etc/whirl/lathe3.key\"\n"
+        ),
+    )
+    .unwrap();
+    // None of the files exists: the profile loads all the same (`whirl plan` needs none).
+    let telemetry = MachineProfile::load(&path).unwrap().telemetry.unwrap();
+    assert_eq!(telemetry.tls_ca, Some(dir.path().join("pki/ca.pem")));
+    assert_eq!(
+        telemetry.tls_cert,
+        Some(PathBuf::from("/etc/whirl/lathe3.crt"))
+    );
+    let error = telemetry.tls().unwrap_err();
+    assert_eq!(error.key, "tls_ca");
+    assert!(
+        error
+            .problem
+            .contains(&dir.path().join("pki/ca.pem").display().to_string()),
+        "{error}"
+    );
+    // A TLS key with a broker spoken to without TLS is refused at load, naming it.
+    let plain = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("mqtts://", "mqtt://");
+    let error = MachineProfile::from_toml(&plain, "lathe3.toml").unwrap_err();
+    assert!(
+        matches!(&error, ProfileError::Invalid { key, .. } if key == "telemetry.tls_ca"),
+        "{error}"
+    );
+}
+
 const SIM: &str = r#"
 name = "sim"
 dialect = "grblhal"

@@ -1,20 +1,27 @@
 //! The overview's subscription: the shop's broker read into the [`Shop`], connecting again
-//! whenever the broker goes away (said once, and once more when it is back).
+//! whenever the broker goes away (said once, and once more when it is back). Over TLS the
+//! broker's certificate is checked and the overview's own shown as a bridge's are
+//! ([`crate::config::telemetry::TelemetrySettings::tls`]); a broker that fails the check or
+//! refuses the overview's certificate is a broker away.
 
 use std::sync::Arc;
 use std::time::Duration;
 
-use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
+use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS, TlsConfiguration, Transport};
 
 use super::Shop;
-use crate::config::telemetry::Broker;
+use crate::config::telemetry::{Broker, TlsConfig};
 
 /// How long the overview waits before it connects again.
 const RETRY: Duration = Duration::from_secs(1);
 
-/// Follows the broker at `broker` (logged in as `login`, if given) into `shop`, until the
-/// task is dropped.
-pub async fn follow(shop: Arc<Shop>, broker: Broker, login: Option<(String, String)>) {
+/// Follows the broker at `broker` (over TLS with `tls`, logged in as `login`, if given)
+/// into `shop`, until the task is dropped.
+pub async fn follow(
+    shop: Arc<Shop>,
+    (broker, tls): (Broker, Option<TlsConfig>),
+    login: Option<(String, String)>,
+) {
     let mut session = [0u8; 6];
     let _ = getrandom::fill(&mut session);
     let id: String = session.iter().map(|b| format!("{b:02x}")).collect();
@@ -26,6 +33,9 @@ pub async fn follow(shop: Arc<Shop>, broker: Broker, login: Option<(String, Stri
         .set_max_packet_size(1 << 20, 1 << 20);
     if let Some((user, password)) = login {
         options.set_credentials(user, password);
+    }
+    if let Some(tls) = tls {
+        options.set_transport(Transport::tls_with_config(TlsConfiguration::Rustls(tls)));
     }
     let (client, mut events) = AsyncClient::new(options, 16);
     let _ = shop.client.set(client.clone());
