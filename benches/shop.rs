@@ -11,8 +11,9 @@
 //! database takes beyond the shop's needs: twenty writers at once recording runs as fast as
 //! it answers (each run opened, held, resumed and closed, as a bridge records one), and a
 //! bridge's spool of a thousand runs kept while the server was stopped, uploaded as the next
-//! opening of the records does. Needs mosquitto and PostgreSQL (Debian's); the figures are
-//! the host's, not a pass or a fail.
+//! opening of the records does. The server flushes every commit to disk, as a shop's does.
+//! Needs mosquitto and PostgreSQL (Debian's); the figures are the host's, not a pass or a
+//! fail.
 
 #[path = "../tests/console/http.rs"]
 #[allow(dead_code)]
@@ -135,6 +136,9 @@ fn main() {
         eprintln!("the shop benchmark needs PostgreSQL (apt-get install postgresql)");
         return;
     };
+    // The database as a shop runs it: every commit flushed to disk (the tests' server is
+    // not, for speed).
+    server.make_durable();
     let db = server.database();
     let dir = tempfile::tempdir().unwrap();
     // Each whirl serve a data folder of its own, as on a host of its own.

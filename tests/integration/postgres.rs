@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, Weak};
 use std::time::{Duration, Instant};
 
@@ -20,6 +20,8 @@ pub struct Postgres {
     user: Option<(u32, u32)>,
     child: Mutex<Child>,
     databases: AtomicUsize,
+    /// Whether it flushes its writes to disk ([`Postgres::make_durable`]).
+    durable: AtomicBool,
     dir: tempfile::TempDir,
 }
 
@@ -144,21 +146,24 @@ impl Postgres {
             .local_addr()
             .unwrap()
             .port();
-        let child = Postgres::serve(&bin, user, dir.path(), port);
+        let child = Postgres::serve(&bin, user, dir.path(), port, false);
         let server = Postgres {
             bin,
             port,
             user,
             child: Mutex::new(child),
             databases: AtomicUsize::new(0),
+            durable: AtomicBool::new(false),
             dir,
         };
         server.wait_ready();
         server
     }
 
-    /// The server process on the data in `dir`, on `port`.
-    fn serve(bin: &Path, user: Option<(u32, u32)>, dir: &Path, port: u16) -> Child {
+    /// The server process on the data in `dir`, on `port`; unless `durable`, its writes not
+    /// flushed to disk (the tests' data lives as long as they do, and flushing would only
+    /// slow them).
+    fn serve(bin: &Path, user: Option<(u32, u32)>, dir: &Path, port: u16, durable: bool) -> Child {
         let server_log = std::fs::OpenOptions::new()
             .create(true)
             .append(true)
@@ -170,7 +175,11 @@ impl Postgres {
             .args(["-p", &port.to_string()])
             .args(["-c", "listen_addresses=127.0.0.1"])
             .args(["-c", "unix_socket_directories="])
-            .args(["-c", "fsync=off", "-c", "full_page_writes=off"])
+            .args(if durable {
+                [].as_slice()
+            } else {
+                ["-c", "fsync=off", "-c", "full_page_writes=off"].as_slice()
+            })
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(server_log)
@@ -201,9 +210,23 @@ impl Postgres {
 
     /// Starts the stopped server again, on its port, with its data.
     pub fn start_again(&self) {
-        *self.child.lock().unwrap_or_else(|p| p.into_inner()) =
-            Postgres::serve(&self.bin, self.user, self.dir.path(), self.port);
+        *self.child.lock().unwrap_or_else(|p| p.into_inner()) = Postgres::serve(
+            &self.bin,
+            self.user,
+            self.dir.path(),
+            self.port,
+            self.durable.load(Ordering::Relaxed),
+        );
         self.wait_ready();
+    }
+
+    /// Restarts the server flushing its writes to disk as a production server does, and so
+    /// on every later start: for the shop benchmark's figures of what the database takes.
+    #[allow(dead_code)]
+    pub fn make_durable(&self) {
+        self.stop();
+        self.durable.store(true, Ordering::Relaxed);
+        self.start_again();
     }
 
     /// The server's processes, by their ids: the postmaster first, then its children, which
