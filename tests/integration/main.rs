@@ -12,6 +12,10 @@ mod fastest;
 mod faults_fieldbus;
 mod faults_serial;
 mod grbl_open;
+// The console tests' HTTP client, some of whose helpers these tests do not use.
+#[path = "../console/http.rs"]
+#[allow(dead_code)]
+mod http;
 mod layers;
 mod link;
 mod linkage;

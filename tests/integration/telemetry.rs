@@ -80,6 +80,20 @@ pub(crate) fn parse(line: &str) -> (String, u8, bool, Value) {
     (topic, qos, retained, payload)
 }
 
+/// What mosquitto_sub printed, parsed, up to and with the bridge's goodbye.
+pub(crate) fn until_goodbye(lines: &mpsc::Receiver<String>) -> Vec<(String, u8, bool, Value)> {
+    let mut got = Vec::new();
+    loop {
+        let line = lines.recv_timeout(DELIVERY).expect("the goodbye comes");
+        let message = parse(&line);
+        let goodbye = message.0.ends_with("/status") && message.3["online"] == false;
+        got.push(message);
+        if goodbye {
+            return got;
+        }
+    }
+}
+
 /// Waits until mosquitto_sub has subscribed: publishes a probe until it comes back, with
 /// mosquitto_pub's `login` options (over TLS, the CA and a certificate and key).
 pub(crate) fn until_subscribed(broker: &Mosquitto, lines: &mpsc::Receiver<String>, login: &[&str]) {
@@ -155,16 +169,7 @@ fn a_dry_run_is_published_as_documented_and_mosquitto_sub_reads_it() {
         String::from_utf8_lossy(&output.stderr)
     );
     // The bridge's goodbye is its last message; it is acknowledged before whirl ends.
-    let mut got = Vec::new();
-    loop {
-        let line = lines.recv_timeout(DELIVERY).expect("the goodbye comes");
-        let message = parse(&line);
-        let goodbye = message.0.ends_with("/status") && message.3["online"] == false;
-        got.push(message);
-        if goodbye {
-            break;
-        }
-    }
+    let got = until_goodbye(&lines);
     let _ = sub.kill();
     for (topic, qos, _, _) in &got {
         assert!(topic.starts_with(&format!("{ROOT}/")), "{topic}");

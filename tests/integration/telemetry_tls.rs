@@ -15,9 +15,10 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
+use crate::http;
 use crate::mosquitto::{Authority, Mosquitto};
 use crate::telemetry::{
-    dry_run_args, mosquitto_sub, parse, run_figures, until_subscribed, whirl, DELIVERY,
+    dry_run_args, mosquitto_sub, run_figures, until_goodbye, until_subscribed, whirl, DELIVERY,
 };
 use crate::util;
 
@@ -117,7 +118,7 @@ fn a_dry_run_over_tls_logs_in_by_its_certificate_and_mosquitto_sub_and_the_overv
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    let overview_at = listening(&mut overview);
+    let overview_at = http::listening(&mut overview);
 
     let profile = shop.lathe3();
     let profile = profile.to_str().unwrap();
@@ -132,16 +133,7 @@ fn a_dry_run_over_tls_logs_in_by_its_certificate_and_mosquitto_sub_and_the_overv
         "a broker that answers is not mentioned: {}",
         text(&output.stderr)
     );
-    let mut got = Vec::new();
-    loop {
-        let line = lines.recv_timeout(DELIVERY).expect("the goodbye comes");
-        let message = parse(&line);
-        let goodbye = message.0.ends_with("/status") && message.3["online"] == false;
-        got.push(message);
-        if goodbye {
-            break;
-        }
-    }
+    let got = until_goodbye(&lines);
     let _ = sub.kill();
     let _ = sub.wait();
     let events: Vec<&Value> = got
@@ -166,7 +158,7 @@ fn a_dry_run_over_tls_logs_in_by_its_certificate_and_mosquitto_sub_and_the_overv
     // follows it: asked again until it shows; the wait's margin is a busy host's).
     let started = Instant::now();
     let row = loop {
-        let rows = get_json(overview_at, "/api/shop");
+        let rows = http::request(overview_at, "GET", "/api/shop", &[], None).json();
         let row = rows
             .as_array()
             .unwrap()
@@ -460,26 +452,4 @@ fn the_overview_refuses_unusable_tls_files_naming_the_option() {
     let (code, stderr) = refused(&["--mqtt", "mqtts://127.0.0.1:8883", "--tls-cert", missing]);
     assert_eq!(code, Some(2), "{stderr}");
     assert!(stderr.contains("--tls-key"), "{stderr}");
-}
-
-/// The address `whirl serve` says on its first line of standard output that it listens on.
-fn listening(child: &mut std::process::Child) -> std::net::SocketAddr {
-    let mut line = String::new();
-    std::io::BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    line.split("http://")
-        .nth(1)
-        .and_then(|rest| rest.split('/').next())
-        .and_then(|a| a.parse().ok())
-        .unwrap_or_else(|| panic!("whirl serve said no address: {line:?}"))
-}
-
-/// A GET on the console at `addr`, its body as JSON.
-fn get_json(addr: std::net::SocketAddr, path: &str) -> Value {
-    let body = reqwest::blocking::get(format!("http://{addr}{path}"))
-        .unwrap()
-        .text()
-        .unwrap();
-    serde_json::from_str(&body).unwrap_or_else(|e| panic!("{path}: {e}: {body}"))
 }
