@@ -80,8 +80,29 @@ fn a_worm_job_takes_its_starts_from_the_groove_and_refuses_a_lead_not_pi_m_z1() 
     assert!(e.contains("needs flank"), "{e}");
     let e = refusal(example("worm-zi", "module = 2.0\n", "").unwrap_err());
     assert!(e.contains("needs module"), "{e}");
+    // ZK's flank is its wheel's envelope: the wheel's diameter is needed, and only there.
     let e = refusal(example("worm-zi", "flank = \"ZI\"", "flank = \"ZK\"").unwrap_err());
-    assert!(e.contains("ZK"), "{e}");
+    assert!(e.contains("needs wheel_diameter"), "{e}");
+    let zk = example(
+        "worm-zi",
+        "flank = \"ZI\"",
+        "flank = \"ZK\"\nwheel_diameter = 250.0",
+    )
+    .unwrap();
+    let (lo, hi) = zk.profile.radius_range();
+    assert!(
+        (lo - 7.6).abs() < 1e-6 && (hi - 12.0).abs() < 1e-9,
+        "{lo} {hi}"
+    );
+    let e = refusal(
+        example(
+            "worm-zi",
+            "flank = \"ZI\"",
+            "flank = \"ZI\"\nwheel_diameter = 250.0",
+        )
+        .unwrap_err(),
+    );
+    assert!(e.contains("wheel_diameter belongs to a ZK worm"), "{e}");
 }
 
 #[test]

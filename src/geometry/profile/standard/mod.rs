@@ -270,6 +270,18 @@ pub enum StandardError {
         /// Base diameter d_b (mm).
         base: f64,
     },
+    /// A ZK worm's wheel leaves no flank at some radius between the root and the tip (its
+    /// envelope folds or leaves the cone there).
+    #[error(
+        "a double-cone wheel of diameter {wheel} mm generates no ZK flank at radius {radius} \
+         mm: choose another wheel diameter, or a smaller lead angle"
+    )]
+    NoWheelEnvelope {
+        /// The wheel's diameter d0 (mm).
+        wheel: f64,
+        /// The radius on the worm where the flank fails (mm).
+        radius: f64,
+    },
     /// A worm's groove is given a pitch other than its axial pitch π·m.
     #[error(
         "axial pitch {pitch} mm is not the module's: a worm of module {module} mm has axial \
@@ -417,7 +429,7 @@ pub enum StandardProfile {
     BallArc(BallArc),
     /// Ball screw raceway: gothic arch or circular arc.
     BallScrew(BallScrew),
-    /// Cylindrical worm: ZA, ZN or ZI.
+    /// Cylindrical worm: ZA, ZN, ZI or ZK.
     Worm(Worm),
 }
 
@@ -617,27 +629,34 @@ impl StandardProfile {
                 }
                 rows
             }
-            StandardProfile::Worm(w) => vec![
-                Dimension::mm("axial module m", w.module()),
-                Dimension {
-                    name: "starts z1",
-                    value: f64::from(w.starts()),
-                    unit: "",
-                },
-                Dimension::mm("axial pitch p_x", w.axial_pitch()),
-                Dimension::mm("lead p_z", w.lead()),
-                Dimension::mm("reference diameter d1", w.reference_diameter()),
-                Dimension::mm("tip diameter d_a1", w.tip_diameter()),
-                Dimension::mm("root diameter d_f1", w.root_diameter()),
-                Dimension::deg("lead angle γ", w.lead_angle().to_degrees()),
-                Dimension::deg("pressure angle α", w.pressure_angle().to_degrees()),
-                Dimension::deg(
-                    "axial pressure angle α_x",
-                    w.axial_pressure_angle().to_degrees(),
-                ),
-                Dimension::mm("axial tooth thickness s_x1", 0.5 * w.axial_pitch()),
-                Dimension::mm("root radius ρ_f", w.root_radius()),
-            ],
+            StandardProfile::Worm(w) => {
+                let mut rows = vec![
+                    Dimension::mm("axial module m", w.module()),
+                    Dimension {
+                        name: "starts z1",
+                        value: f64::from(w.starts()),
+                        unit: "",
+                    },
+                    Dimension::mm("axial pitch p_x", w.axial_pitch()),
+                    Dimension::mm("lead p_z", w.lead()),
+                    Dimension::mm("reference diameter d1", w.reference_diameter()),
+                    Dimension::mm("tip diameter d_a1", w.tip_diameter()),
+                    Dimension::mm("root diameter d_f1", w.root_diameter()),
+                    Dimension::deg("lead angle γ", w.lead_angle().to_degrees()),
+                    Dimension::deg("pressure angle α", w.pressure_angle().to_degrees()),
+                    Dimension::deg(
+                        "axial pressure angle α_x",
+                        w.axial_pressure_angle().to_degrees(),
+                    ),
+                    Dimension::mm("axial tooth thickness s_x1", 0.5 * w.axial_pitch()),
+                    Dimension::mm("root radius ρ_f", w.root_radius()),
+                ];
+                if let Some(wheel) = w.wheel() {
+                    rows.push(Dimension::mm("wheel diameter d0", wheel.diameter()));
+                    rows.push(Dimension::mm("wheel thickness at d0", wheel.thickness()));
+                }
+                rows
+            }
         })
     }
 

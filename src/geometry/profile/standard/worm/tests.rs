@@ -15,7 +15,7 @@ fn worm(flank: WormFlank) -> Worm {
 }
 
 /// Distance from `q` to the chain of pieces.
-fn distance_to_chain(pieces: &[AxialPiece], q: DVec2) -> f64 {
+pub(super) fn distance_to_chain(pieces: &[AxialPiece], q: DVec2) -> f64 {
     pieces
         .iter()
         .map(|p| match *p {
@@ -228,7 +228,10 @@ fn a_zn_flank_is_the_swept_straight_blade_within_a_hundredth_of_a_micrometre() {
 
 #[test]
 fn curved_flanks_join_their_fillets_and_arcs_without_a_corner() {
-    for flank in [WormFlank::ZN, WormFlank::ZI] {
+    let zk = WormFlank::ZK {
+        wheel_diameter: 250.0,
+    };
+    for flank in [WormFlank::ZN, WormFlank::ZI, zk] {
         let w = worm(flank);
         let pieces = w.pieces(w.axial_pitch()).unwrap();
         // Only the two crest edges turn; every other joint is tangent.
@@ -314,6 +317,25 @@ fn every_impossible_worm_is_refused_naming_why() {
         worm(WormFlank::ZA).pieces(5.0),
         Err(StandardError::PitchNotModule { .. })
     ));
+    for d0 in [0.0, -250.0, f64::NAN] {
+        let zk = WormFlank::ZK { wheel_diameter: d0 };
+        assert!(matches!(
+            new(zk, 2.0, 1, 10.0, None, None, None),
+            StandardError::NotPositive {
+                name: "wheel diameter d0",
+                ..
+            }
+        ));
+    }
+    // m = 2, z1 = 2, q = 6: a wheel of 100 mm is near enough a plane to cut near ZI, whose
+    // base cylinder (7.87 mm, as above) lies outside the 7.2 mm root: no flank reaches it.
+    // A 10 mm wheel's envelope does.
+    let zk = |wheel_diameter| WormFlank::ZK { wheel_diameter };
+    assert!(matches!(
+        new(zk(100.0), 2.0, 2, 6.0, None, None, None),
+        StandardError::NoWheelEnvelope { wheel, .. } if wheel == 100.0
+    ));
+    assert!(Worm::new(zk(10.0), 2.0, 2, 6.0, None, None, None).is_ok());
 }
 
 #[test]
@@ -335,6 +357,14 @@ fn a_designation_fixes_the_form_the_lead_and_the_starts() {
     assert!((w.pressure_angle().to_degrees() - 15.0).abs() < 1e-12);
     assert!((d.lead.unwrap() - 5.0 * PI).abs() < 1e-12);
     assert!(d.left_hand);
+    let d = parse("ZK m2 z1 q10 D250").unwrap();
+    assert_eq!(
+        d.form,
+        StandardProfile::Worm(worm(WormFlank::ZK {
+            wheel_diameter: 250.0
+        }))
+    );
+    assert!((d.lead.unwrap() - 2.0 * PI).abs() < 1e-12);
 }
 
 #[test]
@@ -346,6 +376,8 @@ fn a_malformed_worm_designation_is_refused_naming_the_word() {
         ("ZI m2 z1 q10 x3", "`x3`"),
         ("ZI m-2 z1 q10", "`m-2`"),
         ("ZI m2 m3 z1 q10", "`m` is given twice"),
+        ("ZK m2 z1 q10", "the wheel's diameter"),
+        ("ZI m2 z1 q10 D250", "D (a wheel's diameter) belongs to ZK"),
     ] {
         match parse(text) {
             Err(e @ DesignationError::Refused { .. }) => {
@@ -379,4 +411,21 @@ fn whirl_profile_lists_the_worms_din_3975_dimensions() {
     assert!((value("axial tooth thickness s_x1") - 0.5 * PI * 2.0).abs() < 1e-12);
     assert!(form.source().contains("DIN 3975-1"));
     assert_eq!(form.outer_diameter(), 24.0);
+    let zk = StandardProfile::Worm(worm(WormFlank::ZK {
+        wheel_diameter: 250.0,
+    }));
+    let rows = zk.dimensions(PI * 2.0).unwrap();
+    let d0 = rows.iter().find(|d| d.name == "wheel diameter d0").unwrap();
+    assert_eq!(d0.value, 250.0);
+    // Dressed to leave π mm of space on d1, the wheel is about as thick as the space's
+    // normal width there, π·cos γ.
+    let s0 = rows
+        .iter()
+        .find(|d| d.name == "wheel thickness at d0")
+        .unwrap();
+    assert!(
+        (s0.value - PI * 0.1f64.atan().cos()).abs() < 0.05,
+        "{}",
+        s0.value
+    );
 }
