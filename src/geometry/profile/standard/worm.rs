@@ -36,7 +36,7 @@ use super::designation::{Designation, DesignationError};
 use super::{mirror_z, non_negative, positive, AxialPiece, StandardError};
 use glam::DVec2;
 use std::f64::consts::{FRAC_PI_4, PI};
-use zk::Wheel;
+pub use zk::Wheel;
 
 /// How far the arcs standing for a curved flank may lie from it (mm): 0.01 µm.
 pub const FLANK_TOLERANCE: f64 = 1e-5;

@@ -97,7 +97,7 @@ impl Wheel {
     }
 
     /// The contact point on the wheel's circle of radius `big_r`, in the worm's frame.
-    pub fn contact(&self, big_r: f64) -> Option<DVec3> {
+    fn contact(&self, big_r: f64) -> Option<DVec3> {
         // The contact lies near the mid-plane; a quarter turn away the cone faces elsewhere.
         let theta = bracketed(|t| self.envelope(big_r, t), 0.0, 1e-6, FRAC_PI_2)?;
         Some(self.cone(big_r, theta))
@@ -113,7 +113,7 @@ impl Wheel {
     }
 
     /// The point of the −z cone at wheel radius `big_r` and angle `theta` from `e1`.
-    pub fn cone(&self, big_r: f64, theta: f64) -> DVec3 {
+    fn cone(&self, big_r: f64, theta: f64) -> DVec3 {
         let w = self.half_width - (big_r - self.radius) * self.tan_profile;
         DVec3::new(self.centre_distance, 0.0, 0.0) + big_r * self.radial(theta) - w * self.axis()
     }
