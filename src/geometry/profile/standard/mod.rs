@@ -17,8 +17,8 @@
 //! - [`StubAcme`]: Stub Acme thread, ASME B1.8, 29° included angle, basic height 0.3·P.
 //! - [`IsoMetric`]: ISO general purpose metric thread, ISO 68-1 / ISO 965-1, 60°, the
 //!   external thread's root rounded to ISO 965-1's `d3`.
-//! - [`Unified`]: ASME B1.1 unified inch thread (UNC, UNF, UN), the metric form on inch
-//!   sizes.
+//! - [`Unified`]: ASME B1.1 unified inch thread (UNC, UNF, UNEF, UN, UNS), the metric form
+//!   on inch sizes.
 //! - [`Buttress`]: DIN 513-1 buttress thread, 3° load flank and 30° clearance flank.
 //! - [`BallArc`]: single circular-arc ("ball-arc") ball-screw groove with zero contact angle.
 //!
@@ -421,7 +421,7 @@ pub enum StandardProfile {
     StubAcme(StubAcme),
     /// ISO metric (M).
     IsoMetric(IsoMetric),
-    /// Unified inch (UNC, UNF, UN).
+    /// Unified inch (UNC, UNF, UNEF, UN, UNS).
     Unified(Unified),
     /// Buttress (S), DIN 513.
     Buttress(Buttress),

@@ -1,6 +1,7 @@
 //! The unified inch screw thread (UN) of ASME B1.1 by designation: `1/4-20 UNC-2A`,
-//! `#10-32 UNF-3B`, `1 1/2-6 UNC-2A-LH`, `2-8 UN-2A`, read against B1.1's coarse and fine
-//! series and its constant-pitch series.
+//! `#10-32 UNF-3B`, `1 1/2-6 UNC-2A-LH`, `1/4-32 UNEF`, `2-8 UN-2A`, `0.500-24 UNS-2A`, read
+//! against B1.1's coarse, fine and extra-fine series and its constant-pitch series; the
+//! special series (UNS) takes any size and pitch.
 
 use super::designation::{Designation, DesignationError};
 use super::reading::{left_hand, number, refuse, size_inches};
@@ -107,14 +108,62 @@ pub const UNF: &[Row] = &[
     ("1 1/2", 1.5, 12.0),
 ];
 
+/// ASME B1.1-2019 Table 2, extra-fine series UNEF.
+///
+/// Source: the "Table for unified Thread, Type and Number of thread" (UNC, UNF, UNEF and the
+/// constant-pitch columns) of Eisen's SPU gauge page,
+/// <https://eisen.gr.jp/e/products/pin/pin_02.php?pgid=SPU>, which gives every row below.
+/// Checked against: NBK's unified thread size chart
+/// (<https://alb02.internal.nbk1560.com/en/resources/specialscrew/article/Screw_Size_Chart/>,
+/// #12 to 7/8 in, which prints the 1/2-28 row as "UNF": a misprint, B1.1's 1/2 UNF being 20
+/// threads per inch); eFunda's ASME B1.1 standard series
+/// (<http://www.efunda.com/DesignStandards/screws/unified.cfm>; 15/16-20 UNEF on its page
+/// `unified.cfm?start=228&finish=301`, 5/8-24 and 11/16-24 UNEF in a copy of its 5/8 to 7/8 in
+/// page); the microadvances class 2A/2B chart (<http://microadvances.com/drillchart.htm>:
+/// 12-32 UNEF). FreeCAD's hole table (FreeCAD/FreeCAD,
+/// `src/Mod/PartDesign/App/FeatureHole.cpp`) has the same pitches but no 1 3/16 row, which
+/// Eisen's table has. Eisen's table has no UNEF size above 1 11/16 (its 1 3/4 and 2 in take
+/// 16 threads per inch in the 16-UN column only), so neither does this one.
+pub const UNEF: &[Row] = &[
+    ("#12", 0.216, 32.0),
+    ("1/4", 0.25, 32.0),
+    ("5/16", 0.3125, 32.0),
+    ("3/8", 0.375, 32.0),
+    ("7/16", 0.4375, 28.0),
+    ("1/2", 0.5, 28.0),
+    ("9/16", 0.5625, 24.0),
+    ("5/8", 0.625, 24.0),
+    ("11/16", 0.6875, 24.0),
+    ("3/4", 0.75, 20.0),
+    ("13/16", 0.8125, 20.0),
+    ("7/8", 0.875, 20.0),
+    ("15/16", 0.9375, 20.0),
+    ("1", 1.0, 20.0),
+    ("1 1/16", 1.0625, 18.0),
+    ("1 1/8", 1.125, 18.0),
+    ("1 3/16", 1.1875, 18.0),
+    ("1 1/4", 1.25, 18.0),
+    ("1 5/16", 1.3125, 18.0),
+    ("1 3/8", 1.375, 18.0),
+    ("1 7/16", 1.4375, 18.0),
+    ("1 1/2", 1.5, 18.0),
+    ("1 9/16", 1.5625, 18.0),
+    ("1 5/8", 1.625, 18.0),
+    ("1 11/16", 1.6875, 18.0),
+];
+
 /// B1.1's constant-pitch series (4-UN to 32-UN): threads per inch, any size.
 pub const CONSTANT_PITCHES: &[f64] = &[4.0, 6.0, 8.0, 12.0, 16.0, 20.0, 28.0, 32.0];
 
 /// B1.1's classes: 1A, 2A, 3A for the external thread, 1B, 2B, 3B for the internal.
 pub const CLASSES: &[&str] = &["1A", "2A", "3A", "1B", "2B", "3B"];
 
-/// The series marks, longest first (`UNRC` is UNC cut with the rounded root).
-const SERIES: &[&str] = &["UNRC", "UNRF", "UNC", "UNF", "UNR", "UN"];
+/// The series marks, longest first (`UNRC` is UNC cut with the rounded root). `UNS` (`UNRS`)
+/// is B1.1's special series: a size and pitch of no standard series, on the same basic
+/// profile (the symbols as <http://www.gaugestools.com/fine-thread-series/> quotes them).
+const SERIES: &[&str] = &[
+    "UNREF", "UNRC", "UNRF", "UNRS", "UNEF", "UNC", "UNF", "UNS", "UNR", "UN",
+];
 
 /// Reads `size-tpi SERIES[-class][-LH]`. `None` when no series mark stands as a word.
 pub fn read(text: &str) -> Option<Result<Designation, DesignationError>> {
@@ -157,12 +206,17 @@ fn read_parts(head: &str, series: &str, tail: &str) -> Result<Designation, Strin
     let table = match series {
         "UNC" | "UNRC" => Some(UNC),
         "UNF" | "UNRF" => Some(UNF),
+        "UNEF" | "UNREF" => Some(UNEF),
         _ => None,
     };
     let (name, form) = match table {
         Some(table) => {
             let row = lookup(table, &size, tpi, series)?;
             (row.0.to_string(), Unified::new(row.1)?)
+        }
+        None if series == "UNS" || series == "UNRS" => {
+            let (name, inches) = special_size(&size)?;
+            (name, Unified::new(inches)?)
         }
         None => {
             if !CONSTANT_PITCHES.contains(&tpi) {
@@ -179,6 +233,15 @@ fn read_parts(head: &str, series: &str, tail: &str) -> Result<Designation, Strin
         }
     };
     let pitch = MM_PER_INCH / tpi;
+    // A size and pitch no table fixes (UN, UNS) may be no thread at all: the form says why
+    // (the thread deeper than the major radius), for the screw or, class B, the nut.
+    let internal = class.as_deref().is_some_and(|c| c.ends_with('B'));
+    let section = if internal {
+        form.metric.internal_pieces(pitch)
+    } else {
+        form.metric.pieces(pitch)
+    };
+    section.map_err(|e| format!("{name} in at {tpi} threads per inch is not a thread: {e}"))?;
     Ok(Designation {
         row: format!("ASME B1.1-2019, {series}: {name} in, {tpi} threads per inch"),
         form: StandardProfile::Unified(form),
@@ -187,6 +250,42 @@ fn read_parts(head: &str, series: &str, tail: &str) -> Result<Designation, Strin
         left_hand: left,
         class,
     })
+}
+
+/// The name and basic major diameter (in) of a special-series size: a size in inches, or one
+/// of B1.1's number sizes (`#10`, with the diameter its tables give). A bare whole number that
+/// is both (`10`: #10 or 10 in) is refused: no table's pitch tells them apart here.
+fn special_size(size: &str) -> Result<(String, f64), String> {
+    let numbered = |n: &str| {
+        let name = format!("#{n}");
+        UNF.iter().chain(UNC).find(|row| row.0 == name).copied()
+    };
+    if let Some(n) = size.strip_prefix('#') {
+        return numbered(n)
+            .map(|row| (row.0.to_string(), row.1))
+            .ok_or_else(|| {
+                // UNF has every number size, #0 to #12.
+                let sizes: Vec<&str> = UNF
+                    .iter()
+                    .map(|row| row.0)
+                    .filter(|n| n.starts_with('#'))
+                    .collect();
+                format!(
+                    "ASME B1.1 has no number size #{n}; its number sizes are {}",
+                    sizes.join(", ")
+                )
+            });
+    }
+    let inches = size_inches(size);
+    match (numbered(size), inches) {
+        (Some(row), Ok(inches)) => Err(format!(
+            "`{size}` is both B1.1's number size {} ({} in) and {inches} in: write `{}` or \
+             `{inches:.3}`",
+            row.0, row.1, row.0
+        )),
+        (Some(row), Err(_)) => Ok((row.0.to_string(), row.1)),
+        (None, inches) => Ok((size.to_string(), inches?)),
+    }
 }
 
 /// The row of `table` for `size` at `tpi`: a number size (`#10`, or `10` where the table
