@@ -139,17 +139,21 @@ impl Mosquitto {
         std::fs::read_to_string(self.dir.path().join("mosquitto.log")).unwrap_or_default()
     }
 
-    /// A password file with `user`'s `password`, for `password_file`.
-    pub fn password_file(dir: &Path, user: &str, password: &str) -> PathBuf {
+    /// A password file with each user's password, for `password_file`.
+    pub fn password_file(dir: &Path, logins: &[(&str, &str)]) -> PathBuf {
         let file = dir.join("passwords");
-        let made = Command::new("mosquitto_passwd")
-            .args(["-c", "-b"])
-            .arg(&file)
-            .args([user, password])
-            .stdout(Stdio::null())
-            .status()
-            .expect("mosquitto_passwd runs");
-        assert!(made.success());
+        for (k, (user, password)) in logins.iter().enumerate() {
+            // -c makes the file, with the first user; -b takes the password from the line.
+            let create: &[&str] = if k == 0 { &["-c", "-b"] } else { &["-b"] };
+            let made = Command::new("mosquitto_passwd")
+                .args(create)
+                .arg(&file)
+                .args([user, password])
+                .stdout(Stdio::null())
+                .status()
+                .expect("mosquitto_passwd runs");
+            assert!(made.success());
+        }
         file
     }
 }

@@ -20,6 +20,7 @@ use whirl::log::ExecLog;
 use whirl::telemetry::{RunContext, Telemetry};
 use whirl::transport::{control, Posted};
 
+use crate::http;
 use crate::mosquitto::{on, Got, Mosquitto, Subscriber};
 use crate::util;
 
@@ -137,6 +138,30 @@ pub(crate) fn dry_run_args<'a>(
     ];
     args.extend(extra.iter().map(Into::into));
     args
+}
+
+/// The shop overview's row (`/api/shop`) of the machine publishing as `topic` once it shows
+/// a run that completed: the overview is followed as its page follows it, asked again until
+/// it shows; the wait's margin is a busy host's.
+pub(crate) fn until_the_overview_shows(overview: std::net::SocketAddr, topic: &str) -> Value {
+    let started = Instant::now();
+    loop {
+        let rows = http::request(overview, "GET", "/api/shop", &[], None).json();
+        let row = rows
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["topic"] == topic && r["last"]["completed"] == true)
+            .cloned();
+        if let Some(row) = row {
+            return row;
+        }
+        assert!(
+            started.elapsed() < DELIVERY,
+            "the overview never showed the run: {rows}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
 }
 
 /// `whirl` with `args` (from [`dry_run_args`]): what it said, and the report it wrote.
@@ -298,7 +323,7 @@ fn a_broker_that_never_answers_neither_slows_nor_stops_the_run() {
 #[test]
 fn a_broker_that_refuses_the_login_is_said_once_and_the_profiles_login_is_let_in() {
     let dir = tempfile::tempdir().unwrap();
-    let passwords = Mosquitto::password_file(dir.path(), "lathe3", "s3cret-word");
+    let passwords = Mosquitto::password_file(dir.path(), &[("lathe3", "s3cret-word")]);
     let Some(broker) = Mosquitto::with(&format!(
         "allow_anonymous false\npassword_file {}\n",
         passwords.display()
@@ -337,6 +362,86 @@ fn a_broker_that_refuses_the_login_is_said_once_and_the_profiles_login_is_let_in
         kinds.first().copied(),
         Some(&Value::from("start")),
         "{kinds:?}"
+    );
+}
+
+#[test]
+fn the_shop_overview_logs_in_with_its_user_and_the_password_from_the_environment() {
+    let dir = tempfile::tempdir().unwrap();
+    let passwords = Mosquitto::password_file(
+        dir.path(),
+        &[("lathe3", "s3cret-word"), ("overview", "0verview-word")],
+    );
+    let Some(broker) = Mosquitto::with(&format!(
+        "allow_anonymous false\npassword_file {}\n",
+        passwords.display()
+    )) else {
+        return;
+    };
+    let mut overview = Command::new(env!("CARGO_BIN_EXE_whirl"))
+        .arg("--db")
+        .arg(dir.path().join("shop.sqlite"))
+        .args(["serve", "--shop", "--listen", "127.0.0.1:0", "--jobs"])
+        .arg(util::root().join("examples"))
+        .args(["--mqtt", &broker.url(), "--mqtt-user", "overview"])
+        .env("WHIRL_MQTT_PASSWORD", "0verview-word")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let overview_at = http::listening(&mut overview);
+    let sim = std::fs::read_to_string(util::root().join("machine-profiles/sim.toml")).unwrap();
+    let profile = util::write(
+        dir.path(),
+        "lathe3.toml",
+        &format!(
+            "{sim}\n[telemetry]\nmqtt = \"{}\"\nmachine = \"Lathe 3\"\nuser = \"lathe3\"\n\
+             password = \"s3cret-word\"\n",
+            broker.url()
+        ),
+    );
+    let profile = profile.to_str().unwrap().to_owned();
+    let (output, report) = whirl(&dry_run_args(dir.path(), &["--machine", &profile]));
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let row = until_the_overview_shows(overview_at, "lathe-3");
+    assert_eq!(row["run"]["lines"], report["lines"], "{row}");
+    let _ = overview.kill();
+    let _ = overview.wait();
+    // Not anonymous: the broker let the overview in by its user name.
+    let log = broker.log();
+    assert!(
+        log.lines()
+            .any(|l| l.contains(" as whirl-shop-") && l.contains("u'overview'")),
+        "{log}"
+    );
+}
+
+#[test]
+fn a_shop_overview_password_without_its_user_is_refused_before_anything_listens() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_whirl"))
+        .arg("--db")
+        .arg(dir.path().join("shop.sqlite"))
+        .args(["serve", "--shop", "--listen", "127.0.0.1:0", "--jobs"])
+        .arg(util::root().join("examples"))
+        .args(["--mqtt", "mqtt://127.0.0.1:1"])
+        .env("WHIRL_MQTT_PASSWORD", "0verview-word")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("WHIRL_MQTT_PASSWORD") && stderr.contains("needs a `user`"),
+        "{stderr}"
+    );
+    assert!(
+        o.stdout.is_empty(),
+        "it listened: {}",
+        String::from_utf8_lossy(&o.stdout)
     );
 }
 

@@ -10,14 +10,14 @@
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
 use crate::http;
 use crate::mosquitto::{Authority, Mosquitto};
 use crate::telemetry::{
-    dry_run_args, mosquitto_sub, run_figures, until_goodbye, until_subscribed, whirl, DELIVERY,
+    dry_run_args, mosquitto_sub, run_figures, until_goodbye, until_subscribed,
+    until_the_overview_shows, whirl,
 };
 use crate::util;
 
@@ -153,26 +153,8 @@ fn a_dry_run_over_tls_logs_in_by_its_certificate_and_mosquitto_sub_and_the_overv
         "{log}"
     );
 
-    // The overview has the machine and how its run ended (it is followed as a page
-    // follows it: asked again until it shows; the wait's margin is a busy host's).
-    let started = Instant::now();
-    let row = loop {
-        let rows = http::request(overview_at, "GET", "/api/shop", &[], None).json();
-        let row = rows
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|r| r["topic"] == "lathe-3" && r["last"]["completed"] == true)
-            .cloned();
-        if let Some(row) = row {
-            break row;
-        }
-        assert!(
-            started.elapsed() < DELIVERY,
-            "the overview never showed the run: {rows}"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    };
+    // The overview has the machine and how its run ended.
+    let row = until_the_overview_shows(overview_at, "lathe-3");
     assert_eq!(row["run"]["lines"], report["lines"], "{row}");
     let _ = overview.kill();
     let _ = overview.wait();

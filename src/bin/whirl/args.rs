@@ -215,6 +215,11 @@ pub(crate) enum Command {
         /// overview reads.
         #[arg(long, value_name = "URL")]
         mqtt: Option<String>,
+        /// With --shop: the overview's login on a broker that takes user names and
+        /// passwords (mosquitto's `password_file`); the password comes from the environment,
+        /// $WHIRL_MQTT_PASSWORD, not the command line, which any user of the host may read.
+        #[arg(long, value_name = "NAME", requires = "shop")]
+        mqtt_user: Option<String>,
         /// With --shop and an mqtts:// broker: the shop's CA (PEM) the broker's certificate
         /// must be signed by; default: the system's root certificates.
         #[arg(long, value_name = "FILE", requires = "shop")]

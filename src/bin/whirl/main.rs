@@ -190,6 +190,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
             shop,
             prefix,
             mqtt,
+            mqtt_user,
             tls_ca,
             tls_cert,
             tls_key,
@@ -206,6 +207,7 @@ fn run(cli: Cli, record: &mut runs::Recorder) -> Result<ExitCode> {
                     let broker = serve::ShopBroker {
                         mqtt,
                         prefix: &prefix,
+                        login: (mqtt_user, std::env::var("WHIRL_MQTT_PASSWORD").ok()),
                         tls: [tls_ca, tls_cert, tls_key],
                     };
                     serve::shop(&jobs, listen, records, broker)

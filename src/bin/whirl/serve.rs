@@ -196,18 +196,20 @@ async fn bind(
     ))
 }
 
-/// The overview's broker: `--mqtt`, and over TLS the files `--tls-ca`, `--tls-cert` and
-/// `--tls-key` (relative to the working directory).
+/// The overview's broker: `--mqtt`, its login `--mqtt-user` with `$WHIRL_MQTT_PASSWORD`,
+/// and over TLS the files `--tls-ca`, `--tls-cert` and `--tls-key` (relative to the working
+/// directory).
 pub(crate) struct ShopBroker<'a> {
     pub(crate) mqtt: &'a str,
     pub(crate) prefix: &'a str,
+    pub(crate) login: (Option<String>, Option<String>),
     pub(crate) tls: [Option<PathBuf>; 3],
 }
 
 /// `whirl serve --shop`: the shop overview of the machines publishing under the prefix on
 /// the broker, and the history in the run records, until a signal ends it. The broker's
-/// address, the prefix and the TLS files are refused before anything listens, naming the
-/// option.
+/// address, the prefix, the login and the TLS files are refused before anything listens,
+/// naming the option.
 pub(crate) fn shop(
     jobs: &std::path::Path,
     listen: Listen<'_>,
@@ -217,9 +219,12 @@ pub(crate) fn shop(
     let token = listen.token.map(Token::new).transpose()?;
     check_listen(listen.address, token.as_ref())?;
     let [tls_ca, tls_cert, tls_key] = broker.tls;
+    let (user, password) = broker.login;
     let prefix = broker.prefix;
     let settings = TelemetrySettings {
         prefix: prefix.to_owned(),
+        user,
+        password,
         tls_ca,
         tls_cert,
         tls_key,
@@ -228,6 +233,8 @@ pub(crate) fn shop(
     // Each refusal names the option it came from (`tls_ca` is `--tls-ca`).
     let option = |key: &str| match key {
         "mqtt" => "--mqtt".to_owned(),
+        "user" => "--mqtt-user".to_owned(),
+        "password" => "WHIRL_MQTT_PASSWORD".to_owned(),
         key => format!("--{}", key.replace('_', "-")),
     };
     let refused = |e: whirl::config::telemetry::TelemetryError| {
@@ -248,7 +255,11 @@ pub(crate) fn shop(
     runtime.block_on(async move {
         console.records = records(db, allow_unrecorded).await?;
         let shop = Arc::new(Shop::new(prefix, listen.token.map(str::to_owned)));
-        let following = tokio::spawn(feed::follow(Arc::clone(&shop), (broker, tls), None));
+        let login = settings
+            .user
+            .clone()
+            .map(|user| (user, settings.password.clone().unwrap_or_default()));
+        let following = tokio::spawn(feed::follow(Arc::clone(&shop), (broker, tls), login));
         let (listener, address, edge) = bind(&listen, token).await?;
         say!("whirl serve --shop: the shop overview is at http://{address}/ (Ctrl-C ends it)")?;
         let app = whirl::console::shop::page::router(shop, Arc::new(console), Arc::clone(&edge));
