@@ -282,12 +282,33 @@ fn a_dry_run_is_published_as_documented_and_mosquitto_sub_reads_it() {
 }
 
 /// The report's figures a run's telemetry must not change.
-pub(crate) fn run_figures(report: &Value) -> (Value, Value, Value) {
+fn run_figures(report: &Value) -> (Value, Value, Value) {
     (
         report["lines_acked"].clone(),
         report["machine_time_s"].clone(),
         report["within_delta"].clone(),
     )
+}
+
+/// Checks that a run whose broker failed it (`what`) went on as if it had none: it succeeded
+/// with the figures of the run `without` telemetry, and said once that the broker cannot be
+/// reached and the run goes on. What it said, for what the failure was.
+pub(crate) fn went_on_without_the_broker(
+    output: &std::process::Output,
+    report: &Value,
+    without: &Value,
+    what: &str,
+) -> String {
+    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert!(output.status.success(), "{what}: {stderr}");
+    assert_eq!(run_figures(report), run_figures(without), "{what}");
+    assert_eq!(
+        stderr.matches("cannot be reached").count(),
+        1,
+        "{what}: said once: {stderr}"
+    );
+    assert!(stderr.contains("the run goes on"), "{what}: {stderr}");
+    stderr
 }
 
 #[test]
@@ -308,26 +329,52 @@ fn a_broker_that_never_answers_neither_slows_nor_stops_the_run() {
     assert!(plain.status.success());
     for url in [hung_url, down_url] {
         let (output, report) = whirl(&dry_run_args(dir.path(), &["--mqtt", &url]));
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(output.status.success(), "{url}: {stderr}");
-        assert_eq!(run_figures(&report), run_figures(&without), "{url}");
-        assert_eq!(
-            stderr.matches("cannot be reached").count(),
-            1,
-            "{url}: said once: {stderr}"
-        );
-        assert!(stderr.contains("the run goes on"), "{stderr}");
+        went_on_without_the_broker(&output, &report, &without, &url);
     }
+}
+
+/// A broker that lets in only these users, by their passwords (its password file in `dir`).
+fn password_broker(dir: &std::path::Path, logins: &[(&str, &str)]) -> Option<Mosquitto> {
+    let passwords = Mosquitto::password_file(dir, logins);
+    Mosquitto::with(&format!(
+        "allow_anonymous false\npassword_file {}\n",
+        passwords.display()
+    ))
+}
+
+/// The profile `lathe3.toml` in `dir`: the built-in simulator as Lathe 3, reporting to
+/// `broker` logged in as lathe3 with its password.
+fn lathe3_logged_in(dir: &std::path::Path, broker: &Mosquitto) -> String {
+    let sim = std::fs::read_to_string(util::root().join("machine-profiles/sim.toml")).unwrap();
+    let profile = util::write(
+        dir,
+        "lathe3.toml",
+        &format!(
+            "{sim}\n[telemetry]\nmqtt = \"{}\"\nmachine = \"Lathe 3\"\nuser = \"lathe3\"\n\
+             password = \"s3cret-word\"\n",
+            broker.url()
+        ),
+    );
+    profile.to_str().unwrap().to_owned()
+}
+
+/// `whirl serve --shop` following `mqtt`, its records in `dir`, listening on a free port of
+/// loopback (its address the first line it prints); the caller adds the login and stdio.
+pub(crate) fn overview(dir: &std::path::Path, mqtt: &str) -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_whirl"));
+    command
+        .arg("--db")
+        .arg(dir.join("shop.sqlite"))
+        .args(["serve", "--shop", "--listen", "127.0.0.1:0", "--jobs"])
+        .arg(util::root().join("examples"))
+        .args(["--mqtt", mqtt]);
+    command
 }
 
 #[test]
 fn a_broker_that_refuses_the_login_is_said_once_and_the_profiles_login_is_let_in() {
     let dir = tempfile::tempdir().unwrap();
-    let passwords = Mosquitto::password_file(dir.path(), &[("lathe3", "s3cret-word")]);
-    let Some(broker) = Mosquitto::with(&format!(
-        "allow_anonymous false\npassword_file {}\n",
-        passwords.display()
-    )) else {
+    let Some(broker) = password_broker(dir.path(), &[("lathe3", "s3cret-word")]) else {
         return;
     };
     let (output, report) = whirl(&dry_run_args(dir.path(), &["--mqtt", &broker.url()]));
@@ -337,19 +384,9 @@ fn a_broker_that_refuses_the_login_is_said_once_and_the_profiles_login_is_let_in
     assert_eq!(stderr.matches("cannot be reached").count(), 1, "{stderr}");
     assert!(stderr.contains("NotAuthorized"), "{stderr}");
     // The profile's user and password: the run is published.
-    let sim = std::fs::read_to_string(util::root().join("machine-profiles/sim.toml")).unwrap();
-    let profile = util::write(
-        dir.path(),
-        "lathe3.toml",
-        &format!(
-            "{sim}\n[telemetry]\nmqtt = \"{}\"\nmachine = \"Lathe 3\"\nuser = \"lathe3\"\n\
-             password = \"s3cret-word\"\n",
-            broker.url()
-        ),
-    );
+    let profile = lathe3_logged_in(dir.path(), &broker);
     let subscriber =
         Subscriber::with_login(&broker, "whirl/lathe-3/#", Some(("lathe3", "s3cret-word")));
-    let profile = profile.to_str().unwrap().to_owned();
     let (output, _) = whirl(&dry_run_args(dir.path(), &["--machine", &profile]));
     assert!(
         output.status.success(),
@@ -368,39 +405,19 @@ fn a_broker_that_refuses_the_login_is_said_once_and_the_profiles_login_is_let_in
 #[test]
 fn the_shop_overview_logs_in_with_its_user_and_the_password_from_the_environment() {
     let dir = tempfile::tempdir().unwrap();
-    let passwords = Mosquitto::password_file(
-        dir.path(),
-        &[("lathe3", "s3cret-word"), ("overview", "0verview-word")],
-    );
-    let Some(broker) = Mosquitto::with(&format!(
-        "allow_anonymous false\npassword_file {}\n",
-        passwords.display()
-    )) else {
+    let logins = [("lathe3", "s3cret-word"), ("overview", "0verview-word")];
+    let Some(broker) = password_broker(dir.path(), &logins) else {
         return;
     };
-    let mut overview = Command::new(env!("CARGO_BIN_EXE_whirl"))
-        .arg("--db")
-        .arg(dir.path().join("shop.sqlite"))
-        .args(["serve", "--shop", "--listen", "127.0.0.1:0", "--jobs"])
-        .arg(util::root().join("examples"))
-        .args(["--mqtt", &broker.url(), "--mqtt-user", "overview"])
+    let mut overview = overview(dir.path(), &broker.url())
+        .args(["--mqtt-user", "overview"])
         .env("WHIRL_MQTT_PASSWORD", "0verview-word")
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
     let overview_at = http::listening(&mut overview);
-    let sim = std::fs::read_to_string(util::root().join("machine-profiles/sim.toml")).unwrap();
-    let profile = util::write(
-        dir.path(),
-        "lathe3.toml",
-        &format!(
-            "{sim}\n[telemetry]\nmqtt = \"{}\"\nmachine = \"Lathe 3\"\nuser = \"lathe3\"\n\
-             password = \"s3cret-word\"\n",
-            broker.url()
-        ),
-    );
-    let profile = profile.to_str().unwrap().to_owned();
+    let profile = lathe3_logged_in(dir.path(), &broker);
     let (output, report) = whirl(&dry_run_args(dir.path(), &["--machine", &profile]));
     assert!(
         output.status.success(),
@@ -423,12 +440,7 @@ fn the_shop_overview_logs_in_with_its_user_and_the_password_from_the_environment
 #[test]
 fn a_shop_overview_password_without_its_user_is_refused_before_anything_listens() {
     let dir = tempfile::tempdir().unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_whirl"))
-        .arg("--db")
-        .arg(dir.path().join("shop.sqlite"))
-        .args(["serve", "--shop", "--listen", "127.0.0.1:0", "--jobs"])
-        .arg(util::root().join("examples"))
-        .args(["--mqtt", "mqtt://127.0.0.1:1"])
+    let o = overview(dir.path(), "mqtt://127.0.0.1:1")
         .env("WHIRL_MQTT_PASSWORD", "0verview-word")
         .output()
         .unwrap();
